@@ -1,3 +1,5 @@
 //! Host-side test support for vsa: an f64 oracle written from `design.md`, independent of
 //! the fixed-point code in `model`.
 #![forbid(unsafe_code)]
+
+pub mod oracle;

@@ -1,0 +1,109 @@
+//! The emulated boards: QEMU `netduinoplus2` (STM32F405, Cortex-M4F, `qemu-m4`) and
+//! `netduino2` (STM32F205, Cortex-M3, `qemu-m3`).
+//!
+//! QEMU does not emulate RCC, GPIO or the flash controller of these SoCs, so nothing
+//! here waits on a clock-ready bit: the core runs at the machine's fixed SYSCLK and
+//! QEMU clocks the general-purpose timers TIM2–5 from a fixed 1 GHz input whatever
+//! RCC says. defmt frames leave through semihosting (`defmt-semihosting`); the run's
+//! arguments arrive through semihosting too, and so does the exit status.
+//!
+//! # Idle: spin, not WFI
+//!
+//! Under QEMU 7.2 with `-icount shift=3,sleep=off`, a core sleeping in WFI is woken by
+//! SysTick only every *second* period: measured against TIM2 (an independent virtual-time
+//! clock), the 1 kHz loop then runs 500 ticks per emulated second, at every icount shift
+//! tried (0–7); with `sleep=on` it runs 1000 but is no longer deterministic. The emulated
+//! boards therefore idle in a spin loop by default, which keeps both the rate and the
+//! determinism. Reproduce with `cargo xtask run --idle wfi` (the self-check fails).
+
+use super::{IndependentClock, Parts};
+use crate::run::{IdleMode, RunConfig};
+use core::sync::atomic::{AtomicBool, Ordering};
+use defmt_semihosting as _;
+
+#[cfg(feature = "qemu-m4")]
+pub use stm32f4::stm32f405 as pac;
+
+#[cfg(feature = "qemu-m3")]
+pub use stm32f2::stm32f215 as pac;
+
+/// Board name as logged at boot.
+#[cfg(feature = "qemu-m4")]
+pub const NAME: &str = "qemu-m4 (QEMU netduinoplus2, STM32F405, Cortex-M4F)";
+/// Board name as logged at boot.
+#[cfg(feature = "qemu-m3")]
+pub const NAME: &str = "qemu-m3 (QEMU netduino2, STM32F205, Cortex-M3)";
+
+/// Core clock of the emulated SoC, Hz (fixed by the QEMU machine).
+#[cfg(feature = "qemu-m4")]
+pub const SYSCLK_HZ: u32 = 168_000_000;
+/// Core clock of the emulated SoC, Hz (fixed by the QEMU machine).
+#[cfg(feature = "qemu-m3")]
+pub const SYSCLK_HZ: u32 = 120_000_000;
+
+/// Input clock of QEMU's STM32F2xx/F4xx TIM2–5 model, Hz.
+const QEMU_TIMER_INPUT_HZ: u32 = 1_000_000_000;
+
+/// Brings up what the emulated board has.
+pub fn init(device: pac::Peripherals) -> Parts {
+    let prescaler = (QEMU_TIMER_INPUT_HZ / 1_000_000 - 1) as u16;
+    Parts {
+        clock: IndependentClock::start(device.TIM2, prescaler),
+    }
+}
+
+/// Reads the run's options from the semihosting command line (`-semihosting-config
+/// arg=…`); the first argument is the program name.
+pub fn run_config() -> RunConfig {
+    let Ok(args) = semihosting::experimental::env::args::<256>() else {
+        defmt::warn!("no semihosting command line; running the default time");
+        return RunConfig {
+            seconds: Some(RunConfig::DEFAULT_SECONDS),
+            idle: IdleMode::Spin,
+        };
+    };
+    let words = (&args).skip(1).map_while(Result::ok);
+    match RunConfig::parse(words, IdleMode::Spin) {
+        Ok(config) => config,
+        Err(error) => {
+            defmt::error!("bad run arguments: {}", error);
+            exit(false)
+        }
+    }
+}
+
+/// Waits for the next interrupt (see the module docs for why spinning is the default).
+#[inline(always)]
+pub fn wait_for_interrupt(mode: IdleMode) {
+    match mode {
+        IdleMode::Wfi => cortex_m::asm::wfi(),
+        IdleMode::Spin => cortex_m::asm::nop(),
+    }
+}
+
+/// Ends the emulation with status 0 (`passed`) or 1.
+pub fn exit(passed: bool) -> ! {
+    semihosting::process::exit(if passed { 0 } else { 1 })
+}
+
+/// Logs the panic once, then makes QEMU exit with failure.
+///
+/// Interrupts are masked first so the control task cannot start another defmt frame.
+/// If the panic came from inside the logger itself (a frame half written), logging
+/// again would panic again: the second entry skips straight to the exit, and the
+/// decoder on the host drops the half frame.
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    static PANICKING: AtomicBool = AtomicBool::new(false);
+    cortex_m::interrupt::disable();
+    if !PANICKING.swap(true, Ordering::Relaxed) {
+        defmt::error!("panic: {}", defmt::Display2Format(info));
+    }
+    exit(false)
+}
+
+/// defmt's own `panic!`/`unwrap!` end up here.
+#[defmt::panic_handler]
+fn defmt_panic() -> ! {
+    exit(false)
+}

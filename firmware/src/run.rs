@@ -1,0 +1,145 @@
+//! How long an emulated run lasts, and the self-check that decides its exit status.
+
+use crate::timing::{SecondReport, CONTROL_HZ};
+
+/// Options of one run, from the QEMU command line (semihosting) on the emulated boards.
+pub struct RunConfig {
+    /// Stop after this many seconds of the independent clock; `None` runs forever.
+    pub seconds: Option<u32>,
+    /// How `idle` waits for the next interrupt.
+    pub idle: IdleMode,
+}
+
+/// How the idle loop waits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+pub enum IdleMode {
+    /// Sleep with WFI until the next interrupt.
+    Wfi,
+    /// Spin. Under QEMU 7.2 `-icount sleep=off`, a WFI sleep stretches each SysTick period
+    /// to two periods of virtual time (see `board::qemu`), so the emulated boards spin.
+    Spin,
+}
+
+impl RunConfig {
+    /// Emulated runs default to this many seconds.
+    pub const DEFAULT_SECONDS: u32 = 3;
+
+    /// Parses `--seconds N` and `--idle wfi|spin` out of the arguments, starting from
+    /// `DEFAULT_SECONDS` and `default_idle`.
+    pub fn parse<'a>(
+        args: impl Iterator<Item = &'a str>,
+        default_idle: IdleMode,
+    ) -> Result<Self, RunConfigError> {
+        let mut config = Self {
+            seconds: Some(Self::DEFAULT_SECONDS),
+            idle: default_idle,
+        };
+        let mut args = args;
+        while let Some(arg) = args.next() {
+            match arg {
+                "--seconds" => {
+                    let value = args.next().ok_or(RunConfigError::MissingValue)?;
+                    let seconds: u32 = value.parse().map_err(|_| RunConfigError::BadSeconds)?;
+                    if seconds == 0 {
+                        return Err(RunConfigError::BadSeconds);
+                    }
+                    config.seconds = Some(seconds);
+                }
+                "--idle" => {
+                    config.idle = match args.next().ok_or(RunConfigError::MissingValue)? {
+                        "wfi" => IdleMode::Wfi,
+                        "spin" => IdleMode::Spin,
+                        _ => return Err(RunConfigError::BadIdleMode),
+                    };
+                }
+                _ => return Err(RunConfigError::UnknownArgument),
+            }
+        }
+        Ok(config)
+    }
+
+    /// Whether second `second` (1-based) is the last one of the run.
+    pub fn is_last_second(&self, second: u32) -> bool {
+        self.seconds == Some(second)
+    }
+}
+
+/// Why the run arguments were rejected.
+#[derive(Clone, Copy, Debug, defmt::Format)]
+pub enum RunConfigError {
+    /// An option without its value.
+    MissingValue,
+    /// `--seconds` is not a positive integer.
+    BadSeconds,
+    /// `--idle` is neither `wfi` nor `spin`.
+    BadIdleMode,
+    /// An argument this firmware does not know.
+    UnknownArgument,
+}
+
+/// Collects the per-second reports of a run.
+pub struct SelfCheck {
+    seconds: u32,
+    min_ticks: u32,
+    max_ticks: u32,
+    overruns: u32,
+    dropped_reports: u32,
+}
+
+/// Outcome of a run.
+pub struct Verdict {
+    /// Seconds recorded.
+    pub seconds: u32,
+    /// Fewest ticks in one second.
+    pub min_ticks: u32,
+    /// Most ticks in one second.
+    pub max_ticks: u32,
+    /// Overruns over the whole run.
+    pub overruns: u32,
+    /// Reports lost on the way to the telemetry task.
+    pub dropped_reports: u32,
+}
+
+impl Verdict {
+    /// Every second had exactly [`CONTROL_HZ`] ticks, none overran and no report was lost.
+    pub fn passed(&self) -> bool {
+        self.seconds > 0
+            && self.min_ticks == CONTROL_HZ
+            && self.max_ticks == CONTROL_HZ
+            && self.overruns == 0
+            && self.dropped_reports == 0
+    }
+}
+
+impl SelfCheck {
+    /// Nothing recorded yet.
+    pub const fn new() -> Self {
+        Self {
+            seconds: 0,
+            min_ticks: u32::MAX,
+            max_ticks: 0,
+            overruns: 0,
+            dropped_reports: 0,
+        }
+    }
+
+    /// Adds one second's report.
+    pub fn record(&mut self, report: &SecondReport) {
+        self.seconds += 1;
+        self.min_ticks = self.min_ticks.min(report.ticks);
+        self.max_ticks = self.max_ticks.max(report.ticks);
+        self.overruns += report.overruns;
+        self.dropped_reports = report.dropped_reports;
+    }
+
+    /// The run's outcome so far.
+    pub fn verdict(&self) -> Verdict {
+        Verdict {
+            seconds: self.seconds,
+            min_ticks: if self.seconds == 0 { 0 } else { self.min_ticks },
+            max_ticks: self.max_ticks,
+            overruns: self.overruns,
+            dropped_reports: self.dropped_reports,
+        }
+    }
+}

@@ -1,0 +1,179 @@
+//! Sensors as the board sees them: quantisation, clamping, wrap, noise and fault hooks.
+
+/// Potentiometer full scale: 1024 counts (0..=1023) over 300°.
+pub const POT_COUNTS: u16 = 1024;
+/// Potentiometer counts per radian of gear angle: 1024 / (300° in rad) = 195.57.
+pub const POT_COUNTS_PER_RAD: f32 = 1024.0 / (300.0 * (core::f32::consts::PI / 180.0));
+/// Magnetic encoder counts per revolution (12 bit).
+pub const ENCODER_COUNTS: u16 = 4096;
+/// Current ADC full scale: 12 bit (0..=4095).
+pub const ADC_COUNTS: u16 = 4096;
+/// Current ADC reading at zero current (mid-scale).
+pub const ADC_MID: u16 = 2048;
+/// Current ADC counts per ampere: ±2 A over 4096 counts = 1024 counts/A.
+pub const ADC_COUNTS_PER_A: f32 = 1024.0;
+
+/// Deterministic xorshift32 generator (Marsaglia), the noise source of the sensors.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct XorShift32 {
+    state: u32,
+}
+
+impl XorShift32 {
+    /// Seeded generator; seed 0 (a fixed point of xorshift) is replaced by 0x2545_F491.
+    pub fn new(seed: u32) -> Self {
+        Self {
+            state: if seed == 0 { 0x2545_F491 } else { seed },
+        }
+    }
+
+    /// Next 32-bit value (never 0).
+    pub fn next_u32(&mut self) -> u32 {
+        let mut x = self.state;
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        self.state = x;
+        x
+    }
+
+    /// Uniform in [0, 1) with 24-bit resolution (exact in f32).
+    pub fn next_unit(&mut self) -> f32 {
+        (self.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)
+    }
+
+    /// Approximately standard-normal sample (sum of four uniforms, scaled to unit
+    /// variance; bounded to ±3.46).
+    pub fn next_gaussian(&mut self) -> f32 {
+        let s = self.next_unit() + self.next_unit() + self.next_unit() + self.next_unit();
+        // Var(sum) = 4/12 = 1/3 → scale by √3.
+        (s - 2.0) * 1.732_050_8
+    }
+}
+
+/// A fault injected into one sensor channel (applied after quantisation).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SensorFault {
+    /// Healthy sensor.
+    #[default]
+    None,
+    /// The channel reads this raw value (clamped to the channel's range), e.g. 4095 for a
+    /// saturated current ADC, 0 for a disconnected pot.
+    StuckAt(u16),
+    /// The channel repeats its last reading.
+    Frozen,
+    /// The raw value is offset by this many counts (then clamped, or wrapped for the
+    /// encoder): a jump or a calibration error.
+    Offset(i16),
+}
+
+/// Fault hooks of the three channels.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SensorFaults {
+    /// Gear-side potentiometer.
+    pub gear_pot: SensorFault,
+    /// Link-side magnetic encoder.
+    pub link_encoder: SensorFault,
+    /// Motor current ADC.
+    pub current_adc: SensorFault,
+}
+
+/// Raw sensor values, as the board's peripherals deliver them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SensorReadings {
+    /// Gear-side potentiometer, 0..=1023 over 300° (0.293°/count), clamped at the ends;
+    /// `pot_center_counts` (default 512) at gear angle 0; rounds to nearest.
+    pub gear_pot: u16,
+    /// Link-side magnetic encoder, 0..=4095 per revolution, wraps; truncates (floor);
+    /// `encoder_zero_counts` at link angle 0.
+    pub link_encoder: u16,
+    /// Motor current ADC, 0..=4095: 2048 + 1024·i (i in A, ±2 A full scale) + offset error +
+    /// noise, rounded, clamped at the rails.
+    pub current_adc: u16,
+}
+
+#[inline]
+fn round_clamp(x: f32, max: u16) -> u16 {
+    let r = libm::floorf(x + 0.5);
+    if r <= 0.0 {
+        0
+    } else if r >= f32::from(max) {
+        max
+    } else {
+        r as u16
+    }
+}
+
+pub(crate) fn pot_counts(gear_angle_rad: f64, center: f32) -> u16 {
+    // Clamp in f64 first so that huge angles do not lose the clamp in f32.
+    let x = gear_angle_rad * f64::from(POT_COUNTS_PER_RAD) + f64::from(center);
+    let x = x.clamp(-1.0, 1024.0);
+    round_clamp(x as f32, POT_COUNTS - 1)
+}
+
+pub(crate) fn encoder_counts(link_angle_rad: f64, zero: u16) -> u16 {
+    let counts_per_rad = f64::from(ENCODER_COUNTS) / (2.0 * core::f64::consts::PI);
+    // `as` saturates (NaN → 0): no panic; rem_euclid by a positive constant cannot panic.
+    let c = libm::floor(link_angle_rad * counts_per_rad) as i64 + i64::from(zero);
+    c.rem_euclid(i64::from(ENCODER_COUNTS)) as u16
+}
+
+pub(crate) fn adc_counts(current_a: f32, offset: f32, noise: f32) -> u16 {
+    // Keep the product well inside the f32 → u16 range before rounding (constant bounds:
+    // `clamp` cannot panic).
+    let i = current_a.clamp(-4.0, 4.0);
+    round_clamp(
+        f32::from(ADC_MID) + i * ADC_COUNTS_PER_A + offset + noise,
+        ADC_COUNTS - 1,
+    )
+}
+
+fn apply(fault: SensorFault, raw: u16, last: u16, max: u16, wrap: bool) -> u16 {
+    match fault {
+        SensorFault::None => raw,
+        SensorFault::StuckAt(v) => {
+            if v > max {
+                max
+            } else {
+                v
+            }
+        }
+        SensorFault::Frozen => last,
+        SensorFault::Offset(d) => {
+            let v = i32::from(raw) + i32::from(d);
+            if wrap {
+                v.rem_euclid(i32::from(max) + 1) as u16
+            } else {
+                v.clamp(0, i32::from(max)) as u16
+            }
+        }
+    }
+}
+
+impl SensorFaults {
+    pub(crate) fn apply(&self, raw: SensorReadings, last: SensorReadings) -> SensorReadings {
+        SensorReadings {
+            gear_pot: apply(
+                self.gear_pot,
+                raw.gear_pot,
+                last.gear_pot,
+                POT_COUNTS - 1,
+                false,
+            ),
+            link_encoder: apply(
+                self.link_encoder,
+                raw.link_encoder,
+                last.link_encoder,
+                ENCODER_COUNTS - 1,
+                true,
+            ),
+            current_adc: apply(
+                self.current_adc,
+                raw.current_adc,
+                last.current_adc,
+                ADC_COUNTS - 1,
+                false,
+            ),
+        }
+    }
+}
