@@ -110,7 +110,7 @@ pub fn run() -> Result<bool> {
 /// that reports no failing test (a build error) counts as one failure.
 fn host_tests(tally: &mut Tally) {
     let mut cmd = cargo();
-    cmd.args(["test", "--release"]).stdout(Stdio::piped());
+    cmd.args(["test"]).stdout(Stdio::piped());
     let mut child = match cmd.spawn() {
         Ok(child) => child,
         Err(e) => return tally.record("cargo test", Err(e.into())),
