@@ -56,6 +56,7 @@ mod app {
         run: RunConfig,
         self_check: SelfCheck,
         idle_mode: IdleMode,
+        panic_at_tick: Option<u32>,
     }
 
     #[init]
@@ -80,6 +81,7 @@ mod app {
                 accounting: TickAccounting::new(),
                 board_clock: parts.clock,
                 idle_mode: run.idle,
+                panic_at_tick: run.panic_at_tick,
                 run,
                 self_check: SelfCheck::new(),
             },
@@ -87,15 +89,19 @@ mod app {
     }
 
     /// The 1 kHz control period, at the highest priority.
-    #[task(binds = SysTick, priority = 3, local = [control, accounting, board_clock])]
+    #[task(binds = SysTick, priority = 3, local = [control, accounting, board_clock, panic_at_tick])]
     fn control_tick(cx: control_tick::Context) {
         let start = SYST::get_current();
+        let tick = cx.local.accounting.ticks() + 1;
+        if *cx.local.panic_at_tick == Some(tick) {
+            panic!("injected panic at tick {}", tick);
+        }
         let now_us = cx.local.board_clock.now_us();
         cx.local.control.tick();
         let busy_counts = timing::systick_elapsed(start, SYST::get_current(), board::SYSCLK_HZ);
         // SysTick pending again while we still run it: the next period has already begun.
         let overrun = SCB::is_pendst_pending();
-        timing::publish_tick(cx.local.accounting.ticks() + 1);
+        timing::publish_tick(tick);
         if let Some(report) = cx.local.accounting.on_tick(now_us, overrun, busy_counts) {
             if telemetry::spawn(report).is_err() {
                 cx.local.accounting.note_dropped_report();

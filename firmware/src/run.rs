@@ -8,6 +8,9 @@ pub struct RunConfig {
     pub seconds: Option<u32>,
     /// How `idle` waits for the next interrupt.
     pub idle: IdleMode,
+    /// Panic on purpose in this control tick (1-based), to prove the panic path: the
+    /// log stays decodable and the emulator exits with failure.
+    pub panic_at_tick: Option<u32>,
 }
 
 /// How the idle loop waits.
@@ -24,8 +27,8 @@ impl RunConfig {
     /// Emulated runs default to this many seconds.
     pub const DEFAULT_SECONDS: u32 = 3;
 
-    /// Parses `--seconds N` and `--idle wfi|spin` out of the arguments, starting from
-    /// `DEFAULT_SECONDS` and `default_idle`.
+    /// Parses `--seconds N`, `--idle wfi|spin` and `--inject-panic-at-tick N` out of the
+    /// arguments, starting from `DEFAULT_SECONDS` and `default_idle`.
     pub fn parse<'a>(
         args: impl Iterator<Item = &'a str>,
         default_idle: IdleMode,
@@ -33,6 +36,7 @@ impl RunConfig {
         let mut config = Self {
             seconds: Some(Self::DEFAULT_SECONDS),
             idle: default_idle,
+            panic_at_tick: None,
         };
         let mut args = args;
         while let Some(arg) = args.next() {
@@ -51,6 +55,11 @@ impl RunConfig {
                         "spin" => IdleMode::Spin,
                         _ => return Err(RunConfigError::BadIdleMode),
                     };
+                }
+                "--inject-panic-at-tick" => {
+                    let value = args.next().ok_or(RunConfigError::MissingValue)?;
+                    let tick: u32 = value.parse().map_err(|_| RunConfigError::BadTick)?;
+                    config.panic_at_tick = Some(tick);
                 }
                 _ => return Err(RunConfigError::UnknownArgument),
             }
@@ -73,6 +82,8 @@ pub enum RunConfigError {
     BadSeconds,
     /// `--idle` is neither `wfi` nor `spin`.
     BadIdleMode,
+    /// `--inject-panic-at-tick` is not a tick number.
+    BadTick,
     /// An argument this firmware does not know.
     UnknownArgument,
 }

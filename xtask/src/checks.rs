@@ -78,6 +78,30 @@ pub fn self_test_failures(outcome: &RunOutcome, seconds: u32) -> Vec<String> {
     failures
 }
 
+/// Everything wrong with a run that panicked on purpose at `tick`: it must end with
+/// status 1, with the panic message decoded intact after the first second's report.
+pub fn panic_test_failures(outcome: &RunOutcome, tick: u32) -> Vec<String> {
+    let mut failures = Vec::new();
+    if outcome.exit_code != 1 {
+        failures.push(format!("exit status {}, expected 1", outcome.exit_code));
+    }
+    if outcome.malformed_frames > 0 {
+        failures.push(format!(
+            "{} malformed defmt frames",
+            outcome.malformed_frames
+        ));
+    }
+    let expected = format!("ERROR panic: injected panic at tick {tick}");
+    match outcome.lines.last() {
+        Some(last) if last.contains(&expected) => {}
+        other => failures.push(format!("last line {other:?}, expected `{expected}`")),
+    }
+    if !outcome.lines.iter().any(|l| parse_second_line(l).is_some()) {
+        failures.push("no telemetry before the panic".into());
+    }
+    failures
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -116,6 +140,15 @@ mod tests {
             self_test_failures(&outcome(GOOD, 0), 2),
             Vec::<String>::new()
         );
+    }
+
+    #[test]
+    fn a_panic_run_must_fail_with_its_message_last() {
+        let mut lines = GOOD[..2].to_vec();
+        lines.push("  1.500000 ERROR panic: injected panic at tick 1500 (src/main.rs:97)  (q.rs:1)");
+        assert!(panic_test_failures(&outcome(&lines, 1), 1500).is_empty());
+        assert!(!panic_test_failures(&outcome(&lines, 0), 1500).is_empty());
+        assert!(!panic_test_failures(&outcome(&GOOD[..2], 1), 1500).is_empty());
     }
 
     #[test]

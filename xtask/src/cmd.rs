@@ -26,9 +26,11 @@ pub fn cargo() -> Command {
     cmd
 }
 
-/// Runs `cmd` with inherited stdio; an unsuccessful exit is an error.
+/// Runs `cmd` with its output on our stderr (stdout stays the firmware's log); an
+/// unsuccessful exit is an error.
 pub fn run_status(cmd: &mut Command) -> Result<()> {
     let status = cmd
+        .stdout(std::io::stderr())
         .status()
         .with_context(|| format!("starting {}", describe(cmd)))?;
     if !status.success() {

@@ -12,6 +12,9 @@ use crate::{checks, firmware, qemu, setup};
 /// Seconds of emulated time each board's self-test runs.
 const SELF_TEST_SECONDS: u32 = 3;
 
+/// Control tick at which the panic-handler test panics on purpose.
+const PANIC_TICK: u32 = 1500;
+
 #[derive(Default)]
 struct Tally {
     passed: usize,
@@ -97,6 +100,19 @@ pub fn run() -> Result<bool> {
             Ok(())
         });
         tally.record(&format!("self-test on {}", board.feature()), result);
+    }
+
+    for (board, elf) in elfs.iter().filter(|(b, _)| b.qemu_machine().is_some()) {
+        let args = vec!["--inject-panic-at-tick".to_owned(), PANIC_TICK.to_string()];
+        let result = qemu::run(*board, elf, &args, wall_limit(3), |line| {
+            println!("[{} panic test] {line}", board.feature())
+        })
+        .and_then(|outcome| {
+            let failures = checks::panic_test_failures(&outcome, PANIC_TICK);
+            anyhow::ensure!(failures.is_empty(), "{}", failures.join("; "));
+            Ok(())
+        });
+        tally.record(&format!("panic handler on {}", board.feature()), result);
     }
 
     if !tally.failures.is_empty() {

@@ -59,6 +59,7 @@ pub fn run_config() -> RunConfig {
     RunConfig {
         seconds: None,
         idle: IdleMode::Wfi,
+        panic_at_tick: None,
     }
 }
 

@@ -60,6 +60,7 @@ pub fn run_config() -> RunConfig {
         return RunConfig {
             seconds: Some(RunConfig::DEFAULT_SECONDS),
             idle: IdleMode::Spin,
+            panic_at_tick: None,
         };
     };
     let words = (&args).skip(1).map_while(Result::ok);
@@ -97,7 +98,15 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
     static PANICKING: AtomicBool = AtomicBool::new(false);
     cortex_m::interrupt::disable();
     if !PANICKING.swap(true, Ordering::Relaxed) {
-        defmt::error!("panic: {}", defmt::Display2Format(info));
+        let (file, line) = info
+            .location()
+            .map_or(("?", 0), |l| (l.file(), l.line()));
+        defmt::error!(
+            "panic: {} ({=str}:{=u32})",
+            defmt::Display2Format(&info.message()),
+            file,
+            line
+        );
     }
     exit(false)
 }
