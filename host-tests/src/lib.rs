@@ -2,4 +2,5 @@
 //! the fixed-point code in `model`.
 #![forbid(unsafe_code)]
 
+pub mod convert;
 pub mod oracle;
