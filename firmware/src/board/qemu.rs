@@ -98,9 +98,7 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
     static PANICKING: AtomicBool = AtomicBool::new(false);
     cortex_m::interrupt::disable();
     if !PANICKING.swap(true, Ordering::Relaxed) {
-        let (file, line) = info
-            .location()
-            .map_or(("?", 0), |l| (l.file(), l.line()));
+        let (file, line) = info.location().map_or(("?", 0), |l| (l.file(), l.line()));
         defmt::error!(
             "panic: {} ({=str}:{=u32})",
             defmt::Display2Format(&info.message()),
