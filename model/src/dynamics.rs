@@ -3,7 +3,7 @@
 //! motivation: periodic motion at the natural frequency).
 //!
 //! Units: k in N·m/rad, J in kg·mm² (10⁻⁶ kg·m²), ω in rad/s, so ω² = 10⁶·k/J. The square
-//! root is [`crate::fixmath::isqrt_round`] on ω²·2⁶⁴, which gives ω in I32F32 bits.
+//! root is [`crate::fixmath::isqrt`] on ω²·2⁶⁶, rounded by its last bit to ω in I32F32 bits.
 //!
 //! [`Design::tune`] turns a wanted ω_n into a clutch length and says when it lies outside
 //! the adjustable range [t_c, l] (stiffness range [k(l), k(t_c)]), and which end is
@@ -12,7 +12,7 @@
 use crate::beam::{ov, BeamModel};
 use crate::design::Design;
 use crate::error::{Error, Result};
-use crate::fixmath::{isqrt_round, Scale};
+use crate::fixmath::{isqrt, Scale};
 use crate::units::{Frequency, Inertia, Length, Stiffness};
 
 const MEGA: Scale = Scale::from_u64(1_000_000);
@@ -33,12 +33,16 @@ pub fn natural_frequency(k: Stiffness, inertia: Inertia) -> Result<Frequency> {
     }
     let j = Scale::from_bits(inertia.to_bits(), 32).0;
     let w2 = ov(ov(k.scale().mul(MEGA))?.div(j))?;
-    // ω bits = √(ω²·2⁶⁴); ω < 2³¹ ⟺ ω²·2⁶⁴ < 2¹²⁶.
-    let x = ov(w2.to_u128(64))?;
-    if x >= 1 << 126 {
+    // ω bits = √(ω²·2⁶⁴). Take the root of ω²·2⁶⁶ (one more bit of ω) and round that bit
+    // off: rounding ω² to an integer first and then the root would round twice, which at
+    // ω of a few LSB lands a whole LSB off. ω < 2³¹ ⟺ ω²·2⁶⁶ < 2¹²⁸ (else `None`).
+    let x = ov(w2.to_u128(66))?;
+    let (twice_omega_bits, _) = isqrt(x);
+    let omega_bits = (twice_omega_bits + 1) >> 1;
+    if omega_bits > i64::MAX as u128 {
         return Err(Error::Overflow);
     }
-    Ok(Frequency::from_bits(isqrt_round(x) as i64))
+    Ok(Frequency::from_bits(omega_bits as i64))
 }
 
 /// The stiffness that puts the natural frequency of `inertia` at `omega`: k = J·ω².
@@ -169,6 +173,15 @@ mod tests {
         let k = stiffness_for_frequency(j, w).unwrap();
         assert_eq!(k, Stiffness::from_int(250)); // 1e-3 · 500²
         assert_eq!(natural_frequency(k, j), Ok(w));
+        // ω of a few LSB rounds to the nearest LSB: √(5·2⁻⁶⁴ / 2.01) = 1.577·2⁻³² → 2 LSB,
+        // √(7·2⁻⁶⁴ / 2.9) = 1.554·2⁻³² → 2 LSB (both once came out as 1 LSB).
+        let tiny = |bits, j_mg_mm2| {
+            natural_frequency(Stiffness::from_bits(bits), Inertia::from_int(j_mg_mm2))
+                .map(|w| w.to_bits())
+        };
+        assert_eq!(tiny(5, 2_010_000), Ok(2));
+        assert_eq!(tiny(7, 2_900_000), Ok(2));
+        assert_eq!(tiny(4, 1_000_000), Ok(2));
         assert_eq!(
             natural_frequency(Stiffness::ZERO, j),
             Err(Error::StiffnessNotPositive)
