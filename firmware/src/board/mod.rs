@@ -14,6 +14,17 @@ mod nucleo;
 #[cfg(feature = "nucleo-f446re")]
 pub use nucleo::*;
 
+use crate::run::IdleMode;
+
+/// Waits for the next interrupt: WFI, or a spin on the emulated boards (see `qemu` for why).
+#[inline(always)]
+pub fn wait_for_interrupt(mode: IdleMode) {
+    match mode {
+        IdleMode::Wfi => cortex_m::asm::wfi(),
+        IdleMode::Spin => cortex_m::asm::nop(),
+    }
+}
+
 /// What `init` hands over to the application.
 pub struct Parts {
     /// Free-running µs clock, independent of SysTick.

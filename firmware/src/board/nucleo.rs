@@ -63,15 +63,6 @@ pub fn run_config() -> RunConfig {
     }
 }
 
-/// Sleeps until the next interrupt.
-#[inline(always)]
-pub fn wait_for_interrupt(mode: IdleMode) {
-    match mode {
-        IdleMode::Wfi => cortex_m::asm::wfi(),
-        IdleMode::Spin => cortex_m::asm::nop(),
-    }
-}
-
 /// There is nowhere to exit to: report the verdict and keep running.
 pub fn exit(passed: bool) -> ! {
     defmt::info!("run finished (passed: {=bool}); halting", passed);

@@ -73,15 +73,6 @@ pub fn run_config() -> RunConfig {
     }
 }
 
-/// Waits for the next interrupt (see the module docs for why spinning is the default).
-#[inline(always)]
-pub fn wait_for_interrupt(mode: IdleMode) {
-    match mode {
-        IdleMode::Wfi => cortex_m::asm::wfi(),
-        IdleMode::Spin => cortex_m::asm::nop(),
-    }
-}
-
 /// Ends the emulation with status 0 (`passed`) or 1.
 pub fn exit(passed: bool) -> ! {
     semihosting::process::exit(if passed { 0 } else { 1 })
