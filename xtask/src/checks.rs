@@ -145,7 +145,8 @@ mod tests {
     #[test]
     fn a_panic_run_must_fail_with_its_message_last() {
         let mut lines = GOOD[..2].to_vec();
-        lines.push("  1.500000 ERROR panic: injected panic at tick 1500 (src/main.rs:97)  (q.rs:1)");
+        lines
+            .push("  1.500000 ERROR panic: injected panic at tick 1500 (src/main.rs:97)  (q.rs:1)");
         assert!(panic_test_failures(&outcome(&lines, 1), 1500).is_empty());
         assert!(!panic_test_failures(&outcome(&lines, 0), 1500).is_empty());
         assert!(!panic_test_failures(&outcome(&GOOD[..2], 1), 1500).is_empty());
