@@ -18,6 +18,7 @@ mod design;
 mod error;
 mod figures;
 mod format;
+mod simulate;
 mod units;
 
 use error::CliResult;
@@ -40,12 +41,17 @@ enum Command {
     Design(design::DesignArgs),
     /// Draw the paper's figures (SVG, PNG and the CSV behind each).
     Figures(figures::FiguresArgs),
+    /// Run the position controller against the simulated actuator on the host.
+    Simulate(simulate::SimulateArgs),
 }
 
 fn run(cli: Cli) -> CliResult<()> {
     match cli.command {
         Command::Design(args) => design::run(&args).map(|s| print(&s)),
         Command::Figures(args) => figures::run(&args),
+        Command::Simulate(args) => {
+            simulate::run(&args).map_err(|reason| error::CliError::usage("simulate", reason))
+        }
     }
 }
 

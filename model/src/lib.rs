@@ -13,6 +13,7 @@
 //! * [`hysteresis`]: friction hysteresis branches and their state machine (§2.1);
 //! * [`dynamics`]: natural frequency and the stiffness/clutch setting for a wanted one;
 //! * [`fixmath`]: integer square and cube roots;
+//! * [`control`]: the 1 kHz link-position controller, its trajectories and gain schedule;
 //! * [`error`]: the [`Error`] every fallible function returns.
 //!
 //! Every function is total: inputs outside the documented domain and results that do not
@@ -37,6 +38,7 @@
 
 pub mod backlash;
 pub mod beam;
+pub mod control;
 pub mod design;
 pub mod dynamics;
 pub mod error;
@@ -45,6 +47,9 @@ pub mod hysteresis;
 pub mod units;
 
 pub use beam::{BeamModel, Setting};
+pub use control::{
+    Command, ControlError, Controller, Flags as ControlFlags, Measurements, Output as ControlOutput,
+};
 pub use design::{Design, DesignParams};
 pub use dynamics::{natural_frequency, stiffness_for_frequency, Tuning};
 pub use error::{Error, Result};

@@ -36,13 +36,16 @@
 //! scenario gives the same [`Plant::digest`] on x86, the emulated M3 and the emulated M4F.
 //!
 //! The coupling parameters are plain `f32` that the caller derives from the beam model
-//! (`model` crate, `design.md` §2) for its geometry and clutch length.
+//! (`model` crate, `design.md` §2) for its geometry and clutch length; [`harness`] does
+//! that and closes the loop with the `model` crate's controller (metrics streamed, no
+//! allocation).
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
 mod config;
 mod coupling;
+pub mod harness;
 mod sensors;
 mod sim;
 

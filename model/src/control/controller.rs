@@ -1,0 +1,625 @@
+//! The 1 kHz link-position controller (see the [`crate::control`] module docs for the
+//! design and the scheduling formulas).
+
+use fixed::types::I32F32;
+
+use super::config::{
+    Config, ControlError, Schedule, ADC_COUNTS_PER_A, ADC_MID, ENCODER_COUNTS, POT_COUNTS,
+};
+use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Q16_ONE};
+use super::trajectory::{Command, Reference, Trajectory};
+use crate::design::Design;
+use crate::units::{Angle, Torque};
+
+/// Half an encoder count, π/4096 rad, in I32F32 bits (rounded).
+const HALF_COUNT_Q32: i64 = 3_294_199;
+/// One encoder count per tick as a velocity, 2π/4096 rad · 1000 /s, Q16 (1.534 rad/s).
+const COUNT_PER_TICK_Q16: i32 = 100_531;
+/// One pot count, 300°/1024 = 5π/(3·1024) rad, in I32F32 bits (rounded).
+const POT_COUNT_Q32: i64 = 21_961_324;
+/// ADC counts → A in Q16: 1024 counts/A, so ×64.
+const ADC_TO_Q16_SHIFT: u32 = 6;
+
+const _: () = assert!(ADC_COUNTS_PER_A << ADC_TO_Q16_SHIFT == Q16_ONE);
+
+/// Raw sensor values as the board reads them in this tick.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Measurements {
+    /// Link magnetic encoder, counts 0..=4095 per revolution (wraps; higher bits ignored).
+    pub link_encoder: u16,
+    /// Gear potentiometer, counts 0..=1023 over 300°, if the board has one. `None`: the
+    /// torque estimate uses the current only.
+    pub gear_pot: Option<u16>,
+    /// Motor current ADC, counts 0..=4095, 2048 at 0 A, 1024 counts/A.
+    pub current_adc: u16,
+    /// The duty (‰) the H-bridge actually applied during the last tick, if it differs from
+    /// the controller's previous output (e.g. the supervisor disabled the motor: report 0).
+    /// `None`: the controller's previous output. Used by the back-EMF observer.
+    pub applied_duty: Option<i16>,
+}
+
+/// Live limits active in this tick (clamps, not faults).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Flags {
+    /// The coupling torque is being limited to margin·τ_cap(L): the current clamp that
+    /// protects the beams is active, or the torque estimate exceeds the limit.
+    pub torque_limited: bool,
+    /// The motor current (or motor torque) limit clamps the output.
+    pub current_limited: bool,
+    /// The duty is clamped at ±`max_duty`.
+    pub duty_saturated: bool,
+}
+
+impl Flags {
+    /// Any limit active.
+    #[must_use]
+    pub const fn any(&self) -> bool {
+        self.torque_limited || self.current_limited || self.duty_saturated
+    }
+}
+
+/// What the controller decided in one tick, and what it estimated.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Output {
+    /// Signed PWM duty for the H-bridge, ‰, in ±`max_duty` (≤ ±1000).
+    pub duty: i16,
+    /// Live limits.
+    pub flags: Flags,
+    /// Estimated coupling torque on the link, N·m (resolution 1.5e-5 N·m).
+    pub torque_estimate: Torque,
+    /// Link-angle reference r of this tick, rad.
+    pub reference: Angle,
+    /// Measured link angle (centre of the encoder count), rad, unwrapped.
+    pub link_angle: Angle,
+    /// Gear velocity from the back-EMF observer, rad/s (I32F32, resolution 1.5e-5).
+    pub gear_velocity: I32F32,
+    /// Link velocity from the encoder difference through the derivative filter, rad/s.
+    pub link_velocity: I32F32,
+    /// Motor current, A.
+    pub current: I32F32,
+}
+
+#[cfg(feature = "defmt")]
+impl defmt::Format for Output {
+    fn format(&self, f: defmt::Formatter<'_>) {
+        // Raw bits, cheap enough for the 1 kHz path.
+        defmt::write!(
+            f,
+            "Output(duty={=i16}, {}, tau={=i64}, r={=i64}, th={=i64})",
+            self.duty,
+            self.flags,
+            self.torque_estimate.to_bits(),
+            self.reference.to_bits(),
+            self.link_angle.to_bits()
+        );
+    }
+}
+
+/// The link-position controller: trajectory, PID with feed-forward, free-play
+/// compensation, torque estimate and limits. No allocation, no floats, no panics.
+#[derive(Clone, Debug)]
+pub struct Controller {
+    design: Design,
+    config: Config,
+    sched: Schedule,
+    traj: Trajectory,
+    started: bool,
+    commanded: bool,
+    enc_prev: u16,
+    /// Unwrapped link angle, encoder counts relative to `encoder_zero`.
+    n_link: i32,
+    /// Filtered link velocity, rad/s Q16.
+    w_link: i32,
+    /// Filtered gear velocity for the derivative term, rad/s Q16.
+    w_fb: i32,
+    /// Filtered reference velocity, rad/s Q16.
+    w_ref: i32,
+    /// Gear velocity estimate of the previous tick, rad/s Q16.
+    w_gear_prev: i32,
+    /// Integrator, duty ‰ in Q32 (I32F32 bits).
+    integ: i64,
+    duty_prev: i16,
+    /// Deflection feed-forward of the previous tick, rad Q16, and whether it is valid.
+    defl_prev: i32,
+    defl_valid: bool,
+}
+
+impl Controller {
+    /// A controller for `design` configured with `config`, holding the link where the
+    /// first measurement finds it.
+    ///
+    /// # Errors
+    /// As [`Schedule::new`].
+    pub fn new(design: &Design, config: &Config) -> Result<Controller, ControlError> {
+        let sched = Schedule::new(design, config)?;
+        Ok(Controller {
+            design: *design,
+            config: *config,
+            sched,
+            traj: Trajectory::new(Angle::ZERO),
+            started: false,
+            commanded: false,
+            enc_prev: 0,
+            n_link: 0,
+            w_link: 0,
+            w_fb: 0,
+            w_ref: 0,
+            w_gear_prev: 0,
+            integ: 0,
+            duty_prev: 0,
+            defl_prev: 0,
+            defl_valid: false,
+        })
+    }
+
+    /// Replaces the configuration (clutch moved, new inertia, limits or gains). The new
+    /// schedule is computed first: on error the running configuration is untouched. The
+    /// controller state (integrator, filters, trajectory) carries over.
+    ///
+    /// # Errors
+    /// As [`Schedule::new`].
+    pub fn configure(&mut self, config: &Config) -> Result<(), ControlError> {
+        let sched = Schedule::new(&self.design, config)?;
+        self.sched = sched;
+        self.config = *config;
+        self.defl_valid = false;
+        Ok(())
+    }
+
+    /// The configuration in use.
+    #[must_use]
+    pub const fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// The gain schedule in use.
+    #[must_use]
+    pub const fn schedule(&self) -> &Schedule {
+        &self.sched
+    }
+
+    /// The reference generator.
+    #[must_use]
+    pub const fn trajectory(&self) -> &Trajectory {
+        &self.traj
+    }
+
+    /// Starts a trajectory command from the current reference state (before the first
+    /// [`Controller::step`], from 0 rad).
+    ///
+    /// # Errors
+    /// [`ControlError::TrajectoryOutOfRange`]; the running trajectory is untouched.
+    pub fn command(&mut self, cmd: Command) -> Result<(), ControlError> {
+        self.traj.command(cmd)?;
+        self.commanded = true;
+        Ok(())
+    }
+
+    /// Forgets the loop state (integrator, filters, encoder unwrapping); the next step
+    /// holds the link where it is.
+    pub fn reset(&mut self) {
+        self.started = false;
+        self.commanded = false;
+        self.w_link = 0;
+        self.w_fb = 0;
+        self.w_ref = 0;
+        self.w_gear_prev = 0;
+        self.integ = 0;
+        self.duty_prev = 0;
+        self.defl_valid = false;
+    }
+
+    /// Signed encoder counts in [−2048, 2048) relative to the calibrated zero.
+    fn centred_counts(&self, raw: u16) -> i32 {
+        let v = (i32::from(raw) - self.sched.encoder_zero) & (ENCODER_COUNTS - 1);
+        if v >= ENCODER_COUNTS / 2 {
+            v - ENCODER_COUNTS
+        } else {
+            v
+        }
+    }
+
+    /// One 1 kHz control step. Total: no panics, saturating arithmetic throughout.
+    pub fn step(&mut self, m: &Measurements) -> Output {
+        let s = self.sched;
+
+        // --- link angle: unwrap, centre of the count, filtered velocity ---
+        let delta = if self.started {
+            let d = (i32::from(m.link_encoder) - i32::from(self.enc_prev)) & (ENCODER_COUNTS - 1);
+            if d >= ENCODER_COUNTS / 2 {
+                d - ENCODER_COUNTS
+            } else {
+                d
+            }
+        } else {
+            self.n_link = self.centred_counts(m.link_encoder);
+            0
+        };
+        self.enc_prev = m.link_encoder;
+        self.n_link = self.n_link.saturating_add(delta);
+        let theta_l = (2 * i64::from(self.n_link) + 1).saturating_mul(HALF_COUNT_Q32);
+        if !self.started {
+            self.started = true;
+            if !self.commanded {
+                self.traj = Trajectory::new(Angle::from_bits(theta_l));
+            }
+        }
+        let v_raw = delta.saturating_mul(COUNT_PER_TICK_Q16);
+        self.w_link = self
+            .w_link
+            .saturating_add(s.alpha.apply(v_raw.saturating_sub(self.w_link)));
+
+        // --- current and the back-EMF observer of the gear velocity ---
+        let adc = i32::from(m.current_adc) - ADC_MID;
+        let current = adc << ADC_TO_Q16_SHIFT; // A, Q16 (|adc| < 2¹⁶: no overflow)
+        let applied = m.applied_duty.unwrap_or(self.duty_prev);
+        let w_gear = q32_to_q16(
+            i64::from(applied)
+                .saturating_mul(s.w_per_duty_q32)
+                .saturating_sub(i64::from(adc).saturating_mul(s.w_per_count_q32)),
+        );
+        self.w_fb = self
+            .w_fb
+            .saturating_add(s.alpha.apply(w_gear.saturating_sub(self.w_fb)));
+
+        // --- coupling torque estimate ---
+        // Current-based: motor torque minus the gear's inertial and viscous torque.
+        let dw = w_gear.saturating_sub(self.w_gear_prev);
+        self.w_gear_prev = w_gear;
+        let tau_i =
+            s.kt.apply(current)
+                .saturating_sub(s.jg_fs.apply(dw))
+                .saturating_sub(s.bv.apply(w_gear));
+        let tau = match m.gear_pot {
+            Some(pot) if s.w_defl.apply(Q16_ONE) != 0 => {
+                let pot = i32::from(pot) & (POT_COUNTS - 1);
+                let theta_g = i64::from(pot - s.pot_center).saturating_mul(POT_COUNT_Q32);
+                let phi = q32_to_q16(theta_g.saturating_sub(theta_l));
+                let mag = phi.saturating_abs().saturating_sub(s.free_play_q16).max(0);
+                let phi_e = if phi < 0 { -mag } else { mag };
+                let tau_d = s.k.apply(phi_e);
+                tau_i.saturating_add(s.w_defl.apply(tau_d.saturating_sub(tau_i)))
+            }
+            _ => tau_i,
+        };
+
+        // --- reference and error (zero inside the reference's encoder count) ---
+        let r: Reference = self.traj.advance();
+        let e_q32 = r.position.to_bits().saturating_sub(theta_l);
+        let in_count = (-HALF_COUNT_Q32..HALF_COUNT_Q32).contains(&e_q32);
+        let e = if in_count { 0 } else { q32_to_q16(e_q32) };
+
+        // Derivative on the measured (gear) velocity; the reference velocity goes through
+        // the same filter so that the filter lag does not show up as a tracking error.
+        self.w_ref = self
+            .w_ref
+            .saturating_add(s.alpha.apply(r.velocity_q16.saturating_sub(self.w_ref)));
+
+        // --- feed-forward: trajectory, then free play and compliance ---
+        let u_ff = s
+            .ff_vel
+            .apply(r.velocity_q16)
+            .saturating_add(s.ff_acc.apply(r.acceleration_q16));
+        let u_i = q32_to_q16(self.integ);
+        let tau_ref = s
+            .j_link
+            .apply(r.acceleration_q16)
+            .saturating_add(s.torque_per_duty.apply(u_i));
+        let side = s
+            .fp_slope
+            .apply(tau_ref)
+            .clamp(-s.free_play_q16, s.free_play_q16);
+        let defl = s.inv_k.apply(tau_ref).saturating_add(side);
+        let u_defl = if self.defl_valid {
+            s.ff_defl.apply(defl.saturating_sub(self.defl_prev))
+        } else {
+            0
+        };
+        self.defl_prev = defl;
+        self.defl_valid = true;
+
+        // --- PID (derivative on the filtered link velocity) ---
+        let u = u_ff
+            .saturating_add(u_defl)
+            .saturating_add(s.kp.apply(e))
+            .saturating_add(u_i)
+            .saturating_add(s.kd.apply(self.w_ref.saturating_sub(self.w_fb)));
+
+        // --- limits: current window about the back-EMF, duty limit ---
+        let emf = s.duty_per_w.apply(w_gear);
+        let di = s.duty_per_amp.apply(s.i_lim_q16);
+        let dl = s.duty_lim_q16;
+        let (hi_i, lo_i) = (emf.saturating_add(di), emf.saturating_sub(di));
+        let (mut hi, mut lo) = (hi_i.min(dl), lo_i.max(-dl));
+        if lo > hi {
+            // Back-EMF beyond the supply: the least current the bridge can give.
+            let v = emf.clamp(-dl, dl);
+            hi = v;
+            lo = v;
+        }
+        // Braking governor (raw steps and other jumps of a stationary reference): when
+        // the gear approaches the target faster than the available deceleration a_b can
+        // stop it, ω_g² > 2·a_b·|e|, brake at the limit now instead of when the linear
+        // zone is reached. Products only (no square root).
+        let mut u = u;
+        if r.velocity_q16 == 0
+            && r.acceleration_q16 == 0
+            && w_gear.saturating_abs() > s.brake_min_w_q16
+            && (w_gear > 0) == (e > 0)
+            && e != 0
+        {
+            let w2 = i64::from(w_gear) * i64::from(w_gear); // Q32
+            if w2 > s.two_a_brake.apply_wide(e.saturating_abs()) {
+                u = if w_gear > 0 { i32::MIN } else { i32::MAX };
+            }
+        }
+        let sat_hi = u > hi;
+        let sat_lo = u < lo;
+        let uc = u.clamp(lo, hi);
+        let at_current = (sat_hi && hi == hi_i) || (sat_lo && lo == lo_i);
+        let flags = Flags {
+            torque_limited: (at_current && s.i_lim_from_beams)
+                || tau.saturating_abs() > s.tau_lim_q16,
+            current_limited: at_current && !s.i_lim_from_beams,
+            duty_saturated: (sat_hi && hi == dl) || (sat_lo && lo == -dl),
+        };
+
+        // --- integrator: not further into a clamp ---
+        // Outside the reference's count it integrates K_i·e. Inside, the link error is
+        // unmeasurable, but a creeping gear is not: it integrates −K_p·(ω_g − ṙ) (dead band of
+        // the observer's resolution), i.e. holds the gear where it is with the stiffness
+        // K_p, so an imperfect integrator value cannot let the link creep out of the count.
+        let inc = if in_count {
+            let slip = w_gear.saturating_sub(r.velocity_q16);
+            if slip.saturating_abs() <= s.w_deadband_q16 {
+                0
+            } else {
+                -s.kp_dt.apply_wide(slip)
+            }
+        } else if e.saturating_abs() < s.int_band_q16 {
+            s.ki_dt.apply_wide(e)
+        } else {
+            0 // integral separation: far from the target the P term saturates anyway
+        };
+        if inc != 0 && !((sat_hi && inc > 0) || (sat_lo && inc < 0)) {
+            let lim = q16_to_q32(dl);
+            self.integ = self.integ.saturating_add(inc).clamp(-lim, lim);
+        }
+
+        let duty = sat_i32((i64::from(uc) + 0x8000) >> 16).clamp(-1000, 1000) as i16;
+        self.duty_prev = duty;
+        Output {
+            duty,
+            flags,
+            torque_estimate: Torque::from_bits(q16_to_q32(tau)),
+            reference: r.position,
+            link_angle: Angle::from_bits(theta_l),
+            gear_velocity: I32F32::from_bits(q16_to_q32(w_gear)),
+            link_velocity: I32F32::from_bits(q16_to_q32(self.w_link)),
+            current: I32F32::from_bits(q16_to_q32(current)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::config::{ClutchSetting, GainOverride, PidGains};
+    use super::*;
+    use crate::units::{Frequency, Inertia, Length, Ratio, Stiffness};
+
+    fn ctl(l: i32) -> Controller {
+        Controller::new(&Design::paper(), &Config::paper(Length::from_int(l))).unwrap()
+    }
+
+    fn meas(enc: u16, adc: u16) -> Measurements {
+        Measurements {
+            link_encoder: enc,
+            gear_pot: Some(512),
+            current_adc: adc,
+            applied_duty: None,
+        }
+    }
+
+    #[test]
+    fn schedule_matches_the_formulas() {
+        let d = Design::paper();
+        for l in 1..=5 {
+            let s = Schedule::new(&d, &Config::paper(Length::from_int(l))).unwrap();
+            let k = s.stiffness().get().to_num::<f64>();
+            let wa = (k / 1e-3).sqrt();
+            let wc = (wa / 5.0).min(60.0);
+            let got = s.bandwidth().get().to_num::<f64>();
+            assert!((got - wc).abs() < 1e-6, "L = {l}: ω_c {got} vs {wc}");
+            let j = 4.2e-3;
+            let c = 1.0 / 8.0;
+            let dpv = 1000.0 / 12.0;
+            let g = s.gains();
+            let kp = 3.0 * wc * wc * j / c * dpv;
+            let ki = wc.powi(3) * j / c * dpv;
+            let kd = (3.0 * wc * j - (1.94 / 8.0 + 1e-3)).max(0.0) / c * dpv;
+            assert!((g.kp.to_num::<f64>() - kp).abs() < 1e-3 * kp);
+            assert!((g.ki.to_num::<f64>() - ki).abs() < 1e-3 * ki);
+            assert!((g.kd.to_num::<f64>() - kd).abs() < 1e-3 * kd.max(1.0));
+            let cap = s.setting().torque_capacity().get().to_num::<f64>();
+            let (i_lim, beams) = s.current_limit();
+            let want = (0.85 * cap).min(1.5);
+            assert!((i_lim.to_num::<f64>() - want).abs() < 1e-4, "L = {l}");
+            assert_eq!(beams, 0.85 * cap < 1.5);
+            // Blend weight: σ_i² / (σ_i² + (k·q_pot)²/12).
+            let sd = k * (300f64.to_radians() / 1024.0);
+            let w = 4e-4 / (4e-4 + sd * sd / 12.0);
+            let got = s.deflection_weight().to_num::<f64>();
+            assert!((got - w).abs() < 1e-4, "L = {l}: w {got} vs {w}");
+        }
+    }
+
+    #[test]
+    fn clutch_by_stiffness() {
+        let d = Design::paper();
+        let mut cfg = Config::paper(Length::from_int(3));
+        cfg.clutch = ClutchSetting::Stiffness(Stiffness::from_int(250));
+        let s = Schedule::new(&d, &cfg).unwrap();
+        assert!((s.stiffness().get().to_num::<f64>() - 250.0).abs() < 1e-6);
+        cfg.clutch = ClutchSetting::Stiffness(Stiffness::from_int(5));
+        assert_eq!(
+            Schedule::new(&d, &cfg).unwrap_err(),
+            ControlError::Beam(crate::Error::StiffnessTooLow)
+        );
+    }
+
+    #[test]
+    fn rejected_configuration_leaves_the_running_one_untouched() {
+        let mut a = ctl(3);
+        let mut b = ctl(3);
+        let good = *a.config();
+        let mut bads = [good; 8];
+        bads[0].link_inertia = Inertia::ZERO;
+        bads[1].clutch = ClutchSetting::Length(Length::from_int(9));
+        bads[2].clutch =
+            ClutchSetting::Length(Length::from_fixed(fixed::types::I32F32::lit("0.5")));
+        bads[3].limits.torque_margin = Ratio::from_int(2);
+        bads[4].limits.max_duty = 0;
+        bads[5].motor.resistance_ohm = I32F32::ZERO;
+        bads[6].gains = GainOverride {
+            bandwidth: Some(Frequency::from_int(-1)),
+            gains: None,
+        };
+        bads[7].gains = GainOverride {
+            bandwidth: None,
+            gains: Some(PidGains {
+                kp: I32F32::from_num(-1),
+                ki: I32F32::ZERO,
+                kd: I32F32::ZERO,
+            }),
+        };
+        let want = [
+            ControlError::InertiaOutOfRange,
+            ControlError::ClutchOutOfRange,
+            ControlError::ClutchOutOfRange,
+            ControlError::LimitOutOfRange,
+            ControlError::LimitOutOfRange,
+            ControlError::MotorOutOfRange,
+            ControlError::GainOutOfRange,
+            ControlError::GainOutOfRange,
+        ];
+        a.command(Command::Move {
+            target: Angle::from_int(1),
+            duration_ms: 300,
+        })
+        .unwrap();
+        b.command(Command::Move {
+            target: Angle::from_int(1),
+            duration_ms: 300,
+        })
+        .unwrap();
+        for tick in 0..400u16 {
+            let m = meas(tick / 2, 2048 + tick % 7);
+            if tick % 50 == 10 {
+                let i = usize::from(tick / 50) % bads.len();
+                assert_eq!(a.configure(&bads[i]), Err(want[i]));
+                assert_eq!(a.config(), &good);
+                assert_eq!(a.schedule(), b.schedule());
+            }
+            assert_eq!(a.step(&m), b.step(&m), "tick {tick}");
+        }
+        // A valid reconfiguration does take effect.
+        a.configure(&Config::paper(Length::from_int(5))).unwrap();
+        assert_ne!(a.schedule(), b.schedule());
+    }
+
+    #[test]
+    fn errors_display() {
+        for e in [
+            ControlError::Beam(crate::Error::Overflow),
+            ControlError::ClutchOutOfRange,
+            ControlError::StiffnessOutOfRange,
+            ControlError::InertiaOutOfRange,
+            ControlError::MotorOutOfRange,
+            ControlError::LimitOutOfRange,
+            ControlError::GainOutOfRange,
+            ControlError::SensorOutOfRange,
+            ControlError::TrajectoryOutOfRange,
+            ControlError::Overflow,
+        ] {
+            assert!(!format!("{e}").is_empty());
+        }
+        assert_eq!(
+            format!("{}", ControlError::Beam(crate::Error::Overflow)),
+            "beam model: result out of range of its fixed-point format"
+        );
+    }
+
+    #[test]
+    fn step_is_total_and_bounded() {
+        // Arbitrary and hostile measurement streams: no panic, duty within the limit.
+        let mut c = ctl(5);
+        c.command(Command::Step {
+            target: Angle::from_int(9_000),
+        })
+        .unwrap();
+        let mut x: u32 = 0x1234_5678;
+        for _ in 0..20_000 {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            let m = Measurements {
+                link_encoder: (x & 0xFFFF) as u16,
+                gear_pot: if x & 0x1_0000 == 0 {
+                    None
+                } else {
+                    Some((x >> 20) as u16)
+                },
+                current_adc: (x >> 8) as u16,
+                applied_duty: if x & 0x2_0000 == 0 {
+                    None
+                } else {
+                    Some((x >> 3) as i16)
+                },
+            };
+            let o = c.step(&m);
+            assert!(o.duty.unsigned_abs() <= 1000);
+        }
+    }
+
+    #[test]
+    fn limits_are_reported() {
+        // Link stuck at 0, gear free: a 1 rad step drives the current window.
+        let mut c = ctl(5);
+        c.step(&meas(0, 2048));
+        c.command(Command::Step {
+            target: Angle::from_int(1),
+        })
+        .unwrap();
+        let o = c.step(&meas(0, 2048));
+        // At rest the window is ±R·i_lim = ±(8 V·0.78 A)·1000/12 = ±521 ‰ (beam-limited).
+        assert!(o.flags.torque_limited && !o.flags.current_limited, "{o:?}");
+        assert!((500..540).contains(&o.duty), "{}", o.duty);
+        let mut c = ctl(1);
+        c.step(&meas(0, 2048));
+        c.command(Command::Step {
+            target: Angle::from_int(1),
+        })
+        .unwrap();
+        let o = c.step(&meas(0, 2048));
+        // L = 1 mm: the motor limit (1.5 A → 1000 ‰) binds, together with the duty limit.
+        assert!(o.flags.current_limited && o.flags.duty_saturated && !o.flags.torque_limited);
+        assert_eq!(o.duty, 1000);
+    }
+
+    #[test]
+    fn holds_still_at_rest() {
+        // At rest in the target count the output is constant (no hunting on quantisation).
+        let mut c = ctl(3);
+        let mut last = None;
+        for _ in 0..1000 {
+            let o = c.step(&meas(100, 2048));
+            if let Some(l) = last {
+                assert_eq!(o.duty, l);
+            }
+            last = Some(o.duty);
+        }
+        assert_eq!(last, Some(0));
+    }
+}

@@ -1,0 +1,389 @@
+//! Closed-loop harness: the simulated actuator ([`Plant`]) driven by the fixed-point
+//! controller of the `model` crate ([`Controller`]), with the step-response and tracking
+//! metrics computed on the fly (no_std, no allocation: samples are streamed to a
+//! caller-supplied closure).
+//!
+//! The plant's coupling is derived from the beam model at the controller's clutch setting
+//! (`design.md` §2): stiffness k(L), free play φ_b, hysteresis coefficient (6/5)·μ·R/L and
+//! root stress per N·m; the motor and link from the controller's configuration, so the
+//! controller's model and the plant agree (the plant adds Coulomb friction, hysteresis and
+//! quantisation the controller does not model).
+//!
+//! A run: hold for `settle_ticks` (so that a constant load is taken up by the coupling and
+//! the integrator), give the command, run `run_ticks` more. Metrics use the plant's *true*
+//! link angle and beam stress.
+
+use model::control::{Command, Config, ControlError, Controller, Flags, Measurements};
+use model::Design;
+
+use crate::config::{
+    CouplingConfig, LinkConfig, LoadConfig, MotorConfig, PlantConfig, ProfileStep, TorqueProfile,
+};
+use crate::sim::Plant;
+
+/// One encoder count, rad (2π/4096).
+pub const COUNT_RAD: f64 = core::f64::consts::TAU / 4096.0;
+
+const Q32: f64 = 4_294_967_296.0;
+const Q64: f64 = Q32 * Q32;
+
+/// A load torque step on the link.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Disturbance {
+    /// Tick after the command at which the step applies (negative: during the hold).
+    pub after_command_ticks: i32,
+    /// Added torque on the link, N·m.
+    pub torque_nm: f32,
+}
+
+/// What to run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Scenario {
+    /// Beam design.
+    pub design: Design,
+    /// Controller configuration (clutch, inertia, limits, gains).
+    pub config: Config,
+    /// The command given after the hold.
+    pub command: Command,
+    /// Constant load torque on the link, N·m (positive pushes the link positive).
+    pub load_nm: f32,
+    /// Optional load step.
+    pub disturbance: Option<Disturbance>,
+    /// Ticks (ms) of holding before the command.
+    pub settle_ticks: u32,
+    /// Ticks (ms) after the command.
+    pub run_ticks: u32,
+    /// Whether the controller gets the gear potentiometer.
+    pub use_pot: bool,
+    /// Length of the final window for the steadiness metrics, ticks.
+    pub steady_window_ticks: u32,
+    /// First tick after the command counted in the RMS tracking error.
+    pub rms_from_ticks: u32,
+    /// Plant integration substeps per tick (0: the plant's default).
+    pub substeps: u16,
+    /// Start with the coupling already deflected by the constant load (the link hangs on
+    /// the beams at rest, as after power-up under load) instead of in the middle of the
+    /// free play, where applying the load at t = 0 would slam the link into the beams.
+    pub preload: bool,
+}
+
+impl Scenario {
+    /// The paper-preset defaults for `config` and `command`: 0.5 s hold, 2 s run, no
+    /// load, gear pot on, 500 ms steady window, RMS over the whole run.
+    #[must_use]
+    pub fn new(config: Config, command: Command) -> Scenario {
+        Scenario {
+            design: Design::paper(),
+            config,
+            command,
+            load_nm: 0.0,
+            disturbance: None,
+            settle_ticks: 500,
+            run_ticks: 2000,
+            use_pot: true,
+            steady_window_ticks: 500,
+            rms_from_ticks: 0,
+            substeps: 0,
+            preload: true,
+        }
+    }
+}
+
+/// One tick of the run, for plots and CSV.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    /// Ticks since the start of the run (the hold included).
+    pub tick: u32,
+    /// Time since the command, s (negative during the hold).
+    pub t_s: f64,
+    /// Controller reference, rad.
+    pub reference_rad: f64,
+    /// True link angle, rad.
+    pub link_angle_rad: f64,
+    /// True gear angle, rad.
+    pub gear_angle_rad: f64,
+    /// Duty applied, ‰.
+    pub duty: i16,
+    /// True motor current, A.
+    pub current_a: f32,
+    /// Controller's coupling torque estimate, N·m.
+    pub torque_estimate_nm: f64,
+    /// True coupling torque, N·m.
+    pub spring_torque_nm: f32,
+    /// True beam root stress, Pa.
+    pub beam_stress_pa: f32,
+    /// Controller's live-limit flags.
+    pub flags: Flags,
+    /// Link encoder reading.
+    pub link_encoder: u16,
+}
+
+/// Closed-loop figures of a run (angles from the plant's true state).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Metrics {
+    /// Final target of the command (the centre for a sine), rad.
+    pub target_rad: f64,
+    /// Overshoot beyond the target, % of the commanded change (0 if none).
+    pub overshoot_pct: f64,
+    /// 10 %→90 % rise time, s (`None` if the link never got there).
+    pub rise_time_s: Option<f64>,
+    /// Time from the command until the link stays within ±1 count of the target, s
+    /// (`None` if it is outside at the end).
+    pub settling_time_s: Option<f64>,
+    /// Largest |error| to the target over the steady window, encoder counts.
+    pub steady_state_error_counts: f64,
+    /// Largest |beam stress| over the whole run, Pa.
+    pub peak_stress_pa: f64,
+    /// `peak_stress_pa / σ_allow`.
+    pub peak_stress_ratio: f64,
+    /// σ_allow, Pa.
+    pub allowable_stress_pa: f64,
+    /// RMS of reference − true link angle from `rms_from_ticks` on, rad.
+    pub rms_error_rad: f64,
+    /// Largest |reference − true link angle| over the same span, rad.
+    pub max_error_rad: f64,
+    /// A live torque limit was reported after the command.
+    pub torque_limited: bool,
+    /// The current limit was reported after the command.
+    pub current_limited: bool,
+    /// The duty saturated after the command.
+    pub duty_saturated: bool,
+    /// max − min duty over the steady window, ‰.
+    pub steady_duty_span: i32,
+    /// max − min link encoder count (unwrapped) over the steady window.
+    pub steady_count_span: i32,
+    /// Largest |coupling torque| (true), N·m.
+    pub peak_spring_torque_nm: f64,
+    /// FNV-1a 64 of the duty stream (each duty as 2 little-endian bytes, every tick).
+    pub output_hash: u64,
+    /// Ticks simulated.
+    pub ticks: u32,
+}
+
+/// FNV-1a 64 offset basis.
+pub const FNV_OFFSET: u64 = 0xCBF2_9CE4_8422_2325;
+/// FNV-1a 64 prime.
+pub const FNV_PRIME: u64 = 0x0000_0100_0000_01B3;
+
+/// Feeds `bytes` into the FNV-1a 64 hash `h`.
+#[must_use]
+pub fn fnv1a64(mut h: u64, bytes: &[u8]) -> u64 {
+    for &b in bytes {
+        h ^= u64::from(b);
+        h = h.wrapping_mul(FNV_PRIME);
+    }
+    h
+}
+
+fn fx32(bits: i64) -> f64 {
+    bits as f64 / Q32
+}
+
+/// The plant configuration matching `config` for `design`: coupling from the beam model at
+/// the configured clutch setting, motor and link from the controller's parameters, and a
+/// constant load.
+///
+/// # Errors
+/// As [`model::control::Schedule::new`].
+pub fn plant_config(
+    design: &Design,
+    config: &Config,
+    load_nm: f32,
+) -> Result<PlantConfig, ControlError> {
+    let sched = model::control::Schedule::new(design, config)?;
+    let setting = sched.setting();
+    let p = design.params();
+    let k = sched.stiffness().to_bits() as f64 / Q64;
+    let len_mm = fx32(setting.length().to_bits());
+    let hysteresis = 1.2 * fx32(p.friction.to_bits()) * fx32(p.pitch_radius.to_bits()) / len_mm;
+    let stress_mpa = setting
+        .root_stress(model::Torque::from_int(1))
+        .map_err(ControlError::Beam)?;
+    let m = &config.motor;
+    Ok(PlantConfig {
+        motor: MotorConfig {
+            supply_voltage_v: fx32(m.supply_v.to_bits()) as f32,
+            resistance_ohm: fx32(m.resistance_ohm.to_bits()) as f32,
+            torque_constant_nm_per_a: fx32(m.torque_constant.to_bits()) as f32,
+            back_emf_v_s_per_rad: fx32(m.back_emf.to_bits()) as f32,
+            inertia_kg_m2: (fx32(m.rotor_inertia.to_bits()) * 1e-6) as f32,
+            viscous_nm_s_per_rad: fx32(m.viscous.to_bits()) as f32,
+            ..MotorConfig::default()
+        },
+        coupling: CouplingConfig {
+            stiffness_nm_per_rad: k as f32,
+            free_play_rad: fx32(setting.free_play().to_bits()) as f32,
+            hysteresis_per_rad: hysteresis as f32,
+            stress_per_torque_pa_per_nm: (fx32(stress_mpa.to_bits()) * 1e6) as f32,
+            ..CouplingConfig::default()
+        },
+        link: LinkConfig {
+            inertia_kg_m2: (fx32(config.link_inertia.to_bits()) * 1e-6) as f32,
+            ..LinkConfig::default()
+        },
+        load: LoadConfig {
+            constant_nm: load_nm,
+            ..LoadConfig::default()
+        },
+        ..PlantConfig::default()
+    })
+}
+
+/// Runs `sc`, calling `on_sample` once per tick, and returns the metrics.
+///
+/// # Errors
+/// The controller rejected the configuration or the command.
+pub fn run<F: FnMut(&Sample)>(sc: &Scenario, mut on_sample: F) -> Result<Metrics, ControlError> {
+    let mut pc = plant_config(&sc.design, &sc.config, sc.load_nm)?;
+    pc.substeps = sc.substeps;
+    if let Some(d) = sc.disturbance {
+        let at = i64::from(sc.settle_ticks) + i64::from(d.after_command_ticks);
+        let mut profile = TorqueProfile::default();
+        profile.steps[0] = ProfileStep {
+            from_tick: at.clamp(0, i64::from(u32::MAX)) as u32,
+            torque_nm: d.torque_nm,
+        };
+        profile.len = 1;
+        pc.load.profile = profile;
+    }
+    let mut plant = Plant::new(pc);
+    if sc.preload && sc.load_nm != 0.0 && pc.coupling.stiffness_nm_per_rad > 0.0 {
+        // Equilibrium: k·φ_e = −load, φ = φ_e − sign(load)·φ_b.
+        let phi = -(pc.coupling.free_play_rad
+            + sc.load_nm.abs() / pc.coupling.stiffness_nm_per_rad)
+            * sc.load_nm.signum();
+        plant.set_state(f64::from(phi), 0.0, 0.0, 0.0);
+    }
+    let mut ctl = Controller::new(&sc.design, &sc.config)?;
+    let sigma_allow = fx32(sc.design.params().allowable_stress.to_bits()) * 1e6;
+
+    let total = sc.settle_ticks.saturating_add(sc.run_ticks);
+    let window_from = total.saturating_sub(sc.steady_window_ticks);
+    let mut readings = plant.readings();
+    let mut m = Metrics {
+        allowable_stress_pa: sigma_allow,
+        output_hash: FNV_OFFSET,
+        ..Metrics::default()
+    };
+    let mut start_angle = 0.0f64;
+    let mut target = 0.0f64;
+    let mut last_outside: Option<u32> = None;
+    let mut max_excess = 0.0f64;
+    let (mut sum_sq, mut n_sq) = (0.0f64, 0u32);
+    let (mut duty_min, mut duty_max) = (i32::MAX, i32::MIN);
+    let (mut cnt_min, mut cnt_max) = (i32::MAX, i32::MIN);
+    let mut unwrapped: i32 = 0;
+    let mut last_enc = readings.link_encoder;
+    let (mut t10, mut t90) = (None, None);
+
+    for tick in 0..total {
+        if tick == sc.settle_ticks {
+            ctl.command(sc.command)?;
+        }
+        let meas = Measurements {
+            link_encoder: readings.link_encoder,
+            gear_pot: if sc.use_pot {
+                Some(readings.gear_pot)
+            } else {
+                None
+            },
+            current_adc: readings.current_adc,
+            applied_duty: None,
+        };
+        let out = ctl.step(&meas);
+        if tick == sc.settle_ticks {
+            start_angle = plant.state().link_angle_rad;
+            target = fx32(ctl.trajectory().target().to_bits());
+        }
+        m.output_hash = fnv1a64(m.output_hash, &out.duty.to_le_bytes());
+        readings = plant.step_tick(out.duty);
+        let st = plant.state();
+        let after = tick >= sc.settle_ticks;
+        let since = i64::from(tick) - i64::from(sc.settle_ticks);
+        let t_s = (since + 1) as f64 * 1e-3;
+        let reference = fx32(out.reference.to_bits());
+
+        m.peak_stress_pa = m.peak_stress_pa.max(f64::from(st.beam_stress_pa).abs());
+        m.peak_spring_torque_nm = m
+            .peak_spring_torque_nm
+            .max(f64::from(st.spring_torque_nm).abs());
+        let d = ((i32::from(readings.link_encoder) - i32::from(last_enc) + 2048) & 4095) - 2048;
+        last_enc = readings.link_encoder;
+        unwrapped = unwrapped.saturating_add(d);
+        if after {
+            m.torque_limited |= out.flags.torque_limited;
+            m.current_limited |= out.flags.current_limited;
+            m.duty_saturated |= out.flags.duty_saturated;
+            let err_t = st.link_angle_rad - target;
+            if err_t.abs() > COUNT_RAD {
+                last_outside = Some(tick);
+            }
+            let h = target - start_angle;
+            if h != 0.0 {
+                let frac = (st.link_angle_rad - start_angle) / h;
+                if t10.is_none() && frac >= 0.1 {
+                    t10 = Some(t_s);
+                }
+                if t90.is_none() && frac >= 0.9 {
+                    t90 = Some(t_s);
+                }
+                max_excess = max_excess.max(err_t * h.signum());
+            }
+            if since >= i64::from(sc.rms_from_ticks) {
+                let e = reference - st.link_angle_rad;
+                sum_sq += e * e;
+                n_sq += 1;
+                m.max_error_rad = m.max_error_rad.max(e.abs());
+            }
+        }
+        if tick >= window_from {
+            duty_min = duty_min.min(i32::from(out.duty));
+            duty_max = duty_max.max(i32::from(out.duty));
+            cnt_min = cnt_min.min(unwrapped);
+            cnt_max = cnt_max.max(unwrapped);
+            let e = (st.link_angle_rad - target).abs() / COUNT_RAD;
+            m.steady_state_error_counts = m.steady_state_error_counts.max(e);
+        }
+        on_sample(&Sample {
+            tick,
+            t_s,
+            reference_rad: reference,
+            link_angle_rad: st.link_angle_rad,
+            gear_angle_rad: st.gear_angle_rad,
+            duty: out.duty,
+            current_a: st.motor_current_a,
+            torque_estimate_nm: fx32(out.torque_estimate.to_bits()),
+            spring_torque_nm: st.spring_torque_nm,
+            beam_stress_pa: st.beam_stress_pa,
+            flags: out.flags,
+            link_encoder: readings.link_encoder,
+        });
+    }
+    let h = target - start_angle;
+    m.target_rad = target;
+    // A change below one count (a hold, a sine about the start) has no overshoot figure.
+    m.overshoot_pct = if h.abs() >= COUNT_RAD {
+        100.0 * max_excess / h.abs()
+    } else {
+        0.0
+    };
+    m.rise_time_s = match (t10, t90) {
+        (Some(a), Some(b)) => Some(b - a),
+        _ => None,
+    };
+    m.settling_time_s = match last_outside {
+        None => Some(0.0),
+        Some(t) if t + 1 >= total => None,
+        Some(t) => Some((i64::from(t) - i64::from(sc.settle_ticks) + 1) as f64 * 1e-3),
+    };
+    m.peak_stress_ratio = m.peak_stress_pa / sigma_allow;
+    m.rms_error_rad = if n_sq > 0 {
+        libm::sqrt(sum_sq / f64::from(n_sq))
+    } else {
+        0.0
+    };
+    m.steady_duty_span = duty_max.saturating_sub(duty_min).max(0);
+    m.steady_count_span = cnt_max.saturating_sub(cnt_min).max(0);
+    m.ticks = total;
+    Ok(m)
+}
