@@ -9,6 +9,7 @@
 //!   2 N·m exceeds the stress-limited capacity;
 //! * `capacity`: stress-limited torque capacity τ_cap(L) with the 2 N·m line.
 
+mod closed_loop;
 mod plot;
 mod text;
 
@@ -43,14 +44,14 @@ const QUARTER: i64 = 100;
 
 /// The data behind a figure, one CSV file.
 pub struct Csv {
-    header: &'static str,
+    header: String,
     rows: Vec<String>,
 }
 
 impl Csv {
-    fn new(header: &'static str) -> Csv {
+    fn new(header: impl Into<String>) -> Csv {
         Csv {
-            header,
+            header: header.into(),
             rows: Vec::new(),
         }
     }
@@ -77,11 +78,16 @@ pub fn run(args: &FiguresArgs) -> CliResult<()> {
     plot::register_font().map_err(CliError::runtime)?;
     let design = Design::paper();
     type Make = fn(&Design) -> Result<(Figure, Csv), String>;
-    let figures: [(&str, Make); 4] = [
+    let figures: [(&str, Make); 6] = [
         ("fig4_hysteresis", fig4_hysteresis),
         ("fig5_stiffness", fig5_stiffness),
         ("fig6_deflection", fig6_deflection),
         ("capacity", capacity),
+        (
+            "fig8_identified_stiffness",
+            closed_loop::fig8_identified_stiffness,
+        ),
+        ("fig9_step_responses", closed_loop::fig9_step_responses),
     ];
     for (name, make) in figures {
         let (fig, csv) = make(&design).map_err(|e| CliError::runtime(format!("{name}: {e}")))?;
@@ -185,12 +191,14 @@ pub fn fig4_hysteresis(d: &Design) -> Result<(Figure, Csv), String> {
             points: pts,
             color: COLORS[i],
             dashed: false,
+            marker: false,
         });
         friction.push(Series {
             label: Some(format!("x = {name}·l")),
             points: fr,
             color: COLORS[i],
             dashed: false,
+            marker: false,
         });
     }
     let fig = Figure {
@@ -250,12 +258,14 @@ pub fn fig5_stiffness(d: &Design) -> Result<(Figure, Csv), String> {
                 points: eb.clone(),
                 color: COLORS[0],
                 dashed: false,
+                marker: false,
             },
             Series {
                 label: Some("shear-corrected (Timoshenko)".into()),
                 points: sh.clone(),
                 color: COLORS[1],
                 dashed: true,
+                marker: false,
             },
         ]
     };
@@ -331,12 +341,14 @@ pub fn fig6_deflection(d: &Design) -> Result<(Figure, Csv), String> {
             points: ok,
             color: COLORS[i],
             dashed: false,
+            marker: false,
         });
         series.push(Series {
             label: (!has_ok).then_some(label),
             points: over,
             color: COLORS[i],
             dashed: true,
+            marker: false,
         });
     }
     let fig = Figure {
@@ -396,12 +408,14 @@ pub fn capacity(d: &Design) -> Result<(Figure, Csv), String> {
                     points: pts,
                     color: COLORS[0],
                     dashed: false,
+                    marker: false,
                 },
                 Series {
                     label: Some(format!("load {} N·m", trim(load))),
                     points: vec![(x0, load), (x1, load)],
                     color: COLORS[3],
                     dashed: true,
+                    marker: false,
                 },
             ],
             legend: SeriesLabelPosition::UpperRight,

@@ -55,6 +55,8 @@ pub struct Series {
     pub color: RGBColor,
     /// Dashed instead of solid.
     pub dashed: bool,
+    /// Markers (filled circles) at the points instead of a line.
+    pub marker: bool,
 }
 
 /// One chart.
@@ -216,7 +218,13 @@ where
             .iter()
             .copied()
             .filter(|q| q.0.is_finite() && q.1.is_finite());
-        let ann = if s.dashed {
+        let ann = if s.marker {
+            let fill = ShapeStyle {
+                filled: true,
+                ..style
+            };
+            chart.draw_series(pts.map(|q| Circle::new(q, 6, fill)))
+        } else if s.dashed {
             chart.draw_series(DashedLineSeries::new(pts, 9, 6, style))
         } else {
             chart.draw_series(LineSeries::new(pts, style))
@@ -225,10 +233,19 @@ where
         if let Some(label) = &s.label {
             any_label = true;
             let dashed = s.dashed;
-            ann.label(label.as_str()).legend(move |(x, y)| {
-                let seg = if dashed { 8 } else { 22 };
-                PathElement::new(vec![(x, y), (x + seg, y)], style)
-            });
+            if s.marker {
+                let fill = ShapeStyle {
+                    filled: true,
+                    ..style
+                };
+                ann.label(label.as_str())
+                    .legend(move |(x, y)| Circle::new((x + 11, y), 6, fill));
+            } else {
+                ann.label(label.as_str()).legend(move |(x, y)| {
+                    let seg = if dashed { 8 } else { 22 };
+                    PathElement::new(vec![(x, y), (x + seg, y)], style)
+                });
+            }
         }
     }
     if any_label {
