@@ -4,4 +4,5 @@
 
 pub mod convert;
 pub mod oracle;
+pub mod reference;
 pub mod sim;

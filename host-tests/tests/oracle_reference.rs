@@ -5,40 +5,22 @@
 use host_tests::oracle::{
     natural_frequency, stiffness_for_frequency, Design, DomainError, HysteresisFollower,
 };
+use host_tests::reference::{assert_printed, TABLE_2_2 as TABLE};
 
 const MM: f64 = 1e-3;
 const MPA: f64 = 1e6;
 /// The table's reference torque, 2 N·m.
 const TAU_REF: f64 = 2.0;
 
-/// Asserts that `value` rounds to `printed` at the number of decimals printed: the tolerance
-/// is half a unit in the last printed digit (plus a hair for the f64 of the decimal itself).
-#[track_caller]
-fn assert_printed(what: &str, value: f64, printed: &str) {
-    let expected: f64 = printed.parse().expect("printed value parses");
-    let decimals = printed.split('.').nth(1).map_or(0, str::len);
-    let decimals = i32::try_from(decimals).expect("few decimals");
-    let tol = 0.5 * 10f64.powi(-decimals) * (1.0 + 1e-9);
-    assert!(
-        (value - expected).abs() <= tol,
-        "{what}: oracle {value} does not round to design.md's {printed} (±{tol})"
-    );
-}
-
-/// design.md §2.2 table: (L mm, k, k_T, θ° at 2 N·m, σ MPa at 2 N·m, τ_cap N·m).
-const TABLE: [(f64, &str, &str, &str, &str, &str); 5] = [
-    (1.0, "7167.5", "4680.8", "0.0160", "653", "4.59"),
-    (2.0, "895.9", "790.9", "0.128", "1306", "2.30"),
-    (3.0, "265.5", "250.7", "0.432", "1959", "1.53"),
-    (4.0, "112.0", "108.4", "1.02", "2612", "1.15"),
-    (5.0, "57.3", "56.1", "2.00", "3265", "0.92"),
-];
-
 #[test]
 fn table_stiffness_euler_bernoulli() {
     let d = Design::paper();
     for (l_mm, k, ..) in TABLE {
-        assert_printed(&format!("k at L = {l_mm} mm"), d.stiffness(l_mm * MM), k);
+        assert_printed(
+            &format!("k at L = {l_mm} mm"),
+            d.stiffness(f64::from(l_mm) * MM),
+            k,
+        );
     }
 }
 
@@ -46,7 +28,7 @@ fn table_stiffness_euler_bernoulli() {
 fn table_stiffness_timoshenko() {
     let d = Design::paper();
     for (l_mm, _, k_t, ..) in TABLE {
-        let value = d.stiffness_timoshenko(l_mm * MM);
+        let value = d.stiffness_timoshenko(f64::from(l_mm) * MM);
         assert_printed(&format!("k_T at L = {l_mm} mm"), value, k_t);
     }
 }
@@ -55,7 +37,7 @@ fn table_stiffness_timoshenko() {
 fn table_deflection_at_2nm_degrees() {
     let d = Design::paper();
     for (l_mm, _, _, theta_deg, ..) in TABLE {
-        let value = d.deflection(TAU_REF, l_mm * MM).to_degrees();
+        let value = d.deflection(TAU_REF, f64::from(l_mm) * MM).to_degrees();
         assert_printed(&format!("θ at L = {l_mm} mm"), value, theta_deg);
     }
 }
@@ -64,7 +46,7 @@ fn table_deflection_at_2nm_degrees() {
 fn table_root_stress_at_2nm_mpa() {
     let d = Design::paper();
     for (l_mm, _, _, _, sigma_mpa, _) in TABLE {
-        let value = d.root_stress(TAU_REF, l_mm * MM) / MPA;
+        let value = d.root_stress(TAU_REF, f64::from(l_mm) * MM) / MPA;
         assert_printed(&format!("σ at L = {l_mm} mm"), value, sigma_mpa);
     }
 }
@@ -73,7 +55,7 @@ fn table_root_stress_at_2nm_mpa() {
 fn table_torque_capacity() {
     let d = Design::paper();
     for (l_mm, _, _, _, _, tau_cap) in TABLE {
-        let value = d.torque_capacity(l_mm * MM);
+        let value = d.torque_capacity(f64::from(l_mm) * MM);
         assert_printed(&format!("τ_cap at L = {l_mm} mm"), value, tau_cap);
     }
 }
@@ -101,7 +83,7 @@ fn timoshenko_ratio_at_1mm() {
     // Shear matters less as L grows; k_T < k always.
     let mut last = ratio;
     for l_mm in [2.0, 3.0, 4.0, 5.0] {
-        let r = d.stiffness_timoshenko(l_mm * MM) / d.stiffness(l_mm * MM);
+        let r = d.stiffness_timoshenko(f64::from(l_mm) * MM) / d.stiffness(f64::from(l_mm) * MM);
         assert!(r > last && r < 1.0, "L = {l_mm} mm: ratio {r}");
         last = r;
     }
@@ -215,7 +197,7 @@ fn backlash_tilt_domain() {
 fn hysteresis_branch_ordering() {
     let d = Design::paper();
     for l_mm in [1.0, 1.6, 4.0, 6.4] {
-        let l = l_mm * MM;
+        let l = f64::from(l_mm) * MM;
         for i in 1..=50 {
             let phi = 0.001 * f64::from(i);
             let elastic = d.stiffness(l) * phi;
@@ -247,8 +229,8 @@ fn hysteresis_loop_area_grows_with_phi_and_shorter_length() {
     let d = Design::paper();
     // Closed form matches the numerical integral of the branches.
     for (phi, l_mm) in [(0.01, 1.6), (0.04, 4.0), (0.02, 6.4)] {
-        let closed = d.hysteresis_loop_energy(phi, l_mm * MM);
-        let numeric = loop_area_numeric(&d, phi, l_mm * MM);
+        let closed = d.hysteresis_loop_energy(phi, f64::from(l_mm) * MM);
+        let numeric = loop_area_numeric(&d, phi, f64::from(l_mm) * MM);
         assert!(
             (closed / numeric - 1.0).abs() < 1e-6,
             "{closed} vs {numeric}"

@@ -8,33 +8,12 @@
 
 use host_tests::convert::{mm, mpa, nm, nm_rad, oracle_design, rad, rad_s, KG_MM2, MM, MPA};
 use host_tests::oracle;
+use host_tests::reference::{assert_printed, TABLE_2_2 as TABLE};
 use model::dynamics::natural_frequency;
 use model::{Design, DesignParams, Inertia, Length, Torque};
 
 /// Model vs oracle on the paper's figures.
 const FIG_TOL: f64 = 5e-3;
-
-/// design.md §2.2 table: L (mm), k, k_T (N·m/rad), θ at 2 N·m (°), σ at 2 N·m (MPa),
-/// τ_cap (N·m), as printed.
-const TABLE: [(i32, &str, &str, &str, &str, &str); 5] = [
-    (1, "7167.5", "4680.8", "0.0160", "653", "4.59"),
-    (2, "895.9", "790.9", "0.128", "1306", "2.30"),
-    (3, "265.5", "250.7", "0.432", "1959", "1.53"),
-    (4, "112.0", "108.4", "1.02", "2612", "1.15"),
-    (5, "57.3", "56.1", "2.00", "3265", "0.92"),
-];
-
-/// Asserts `value` rounds to `printed` (half a unit in its last digit).
-#[track_caller]
-fn assert_printed(what: &str, value: f64, printed: &str) {
-    let expected: f64 = printed.parse().expect("a number");
-    let decimals = printed.split('.').nth(1).map_or(0, str::len);
-    let tol = 0.5 * 10f64.powi(-i32::try_from(decimals).expect("few digits")) * (1.0 + 1e-9);
-    assert!(
-        (value - expected).abs() <= tol,
-        "{what}: oracle {value} is not design.md's {printed} (±{tol})"
-    );
-}
 
 /// Asserts the model's `got` is within `rel` of the oracle's `want`.
 #[track_caller]

@@ -93,29 +93,20 @@ struct Derived {
     volts_per_permille: f32,
 }
 
+/// Velocity change per N·m and the Coulomb friction's velocity change over a time `h`, for
+/// one inertia `j` (both zero when `j` ≤ 0).
+fn side_kick(h: f32, j: f32, coulomb_nm: f32) -> (f32, f32) {
+    if j > 0.0 {
+        let cf = if coulomb_nm > 0.0 { coulomb_nm } else { 0.0 };
+        (h / j, h * cf / j)
+    } else {
+        (0.0, 0.0)
+    }
+}
+
 fn kick(h: f32, cfg: &PlantConfig) -> Kick {
-    let jg = cfg.motor.inertia_kg_m2;
-    let jl = cfg.link.inertia_kg_m2;
-    let (gain_g, fric_g) = if jg > 0.0 {
-        let cf = if cfg.motor.coulomb_nm > 0.0 {
-            cfg.motor.coulomb_nm
-        } else {
-            0.0
-        };
-        (h / jg, h * cf / jg)
-    } else {
-        (0.0, 0.0)
-    };
-    let (gain_l, fric_l) = if jl > 0.0 {
-        let cf = if cfg.link.coulomb_nm > 0.0 {
-            cfg.link.coulomb_nm
-        } else {
-            0.0
-        };
-        (h / jl, h * cf / jl)
-    } else {
-        (0.0, 0.0)
-    };
+    let (gain_g, fric_g) = side_kick(h, cfg.motor.inertia_kg_m2, cfg.motor.coulomb_nm);
+    let (gain_l, fric_l) = side_kick(h, cfg.link.inertia_kg_m2, cfg.link.coulomb_nm);
     Kick {
         gain_g,
         fric_g,
