@@ -83,7 +83,7 @@ fn timoshenko_ratio_at_1mm() {
     // Shear matters less as L grows; k_T < k always.
     let mut last = ratio;
     for l_mm in [2.0, 3.0, 4.0, 5.0] {
-        let r = d.stiffness_timoshenko(f64::from(l_mm) * MM) / d.stiffness(f64::from(l_mm) * MM);
+        let r = d.stiffness_timoshenko(l_mm * MM) / d.stiffness(l_mm * MM);
         assert!(r > last && r < 1.0, "L = {l_mm} mm: ratio {r}");
         last = r;
     }
@@ -197,7 +197,7 @@ fn backlash_tilt_domain() {
 fn hysteresis_branch_ordering() {
     let d = Design::paper();
     for l_mm in [1.0, 1.6, 4.0, 6.4] {
-        let l = f64::from(l_mm) * MM;
+        let l = l_mm * MM;
         for i in 1..=50 {
             let phi = 0.001 * f64::from(i);
             let elastic = d.stiffness(l) * phi;
@@ -229,8 +229,8 @@ fn hysteresis_loop_area_grows_with_phi_and_shorter_length() {
     let d = Design::paper();
     // Closed form matches the numerical integral of the branches.
     for (phi, l_mm) in [(0.01, 1.6), (0.04, 4.0), (0.02, 6.4)] {
-        let closed = d.hysteresis_loop_energy(phi, f64::from(l_mm) * MM);
-        let numeric = loop_area_numeric(&d, phi, f64::from(l_mm) * MM);
+        let closed = d.hysteresis_loop_energy(phi, l_mm * MM);
+        let numeric = loop_area_numeric(&d, phi, l_mm * MM);
         assert!(
             (closed / numeric - 1.0).abs() < 1e-6,
             "{closed} vs {numeric}"
