@@ -1,0 +1,2 @@
+//! Driver traits (stub).
+#![no_std]

@@ -1,0 +1,2 @@
+//! Command and telemetry protocol (stub, being written).
+#![no_std]
