@@ -14,6 +14,8 @@
 //! * [`dynamics`]: natural frequency and the stiffness/clutch setting for a wanted one;
 //! * [`fixmath`]: integer square and cube roots;
 //! * [`control`]: the 1 kHz link-position controller, its trajectories and gain schedule;
+//! * [`supervisor`]: the latched fault checks (design.md §7); [`servo`]: the controller
+//!   under the supervisor with the enable state machine, the firmware's per-tick decision;
 //! * [`error`]: the [`Error`] every fallible function returns.
 //!
 //! Every function is total: inputs outside the documented domain and results that do not
@@ -44,6 +46,8 @@ pub mod dynamics;
 pub mod error;
 pub mod fixmath;
 pub mod hysteresis;
+pub mod servo;
+pub mod supervisor;
 pub mod units;
 
 pub use beam::{BeamModel, Setting};

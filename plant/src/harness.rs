@@ -229,11 +229,202 @@ pub fn plant_config(
     })
 }
 
-/// Runs `sc`, calling `on_sample` once per tick, and returns the metrics.
+/// Streams the step-response and tracking metrics of a run, one tick at a time (used by
+/// [`run`] and by the scenarios that run on the firmware).
+#[derive(Clone, Debug)]
+pub struct Recorder {
+    settle_ticks: u32,
+    total: u32,
+    window_from: u32,
+    rms_from_ticks: u32,
+    m: Metrics,
+    start_angle: f64,
+    target: f64,
+    last_outside: Option<u32>,
+    max_excess: f64,
+    sum_sq: f64,
+    n_sq: u32,
+    duty_min: i32,
+    duty_max: i32,
+    cnt_min: i32,
+    cnt_max: i32,
+    unwrapped: i32,
+    last_enc: u16,
+    t10: Option<f64>,
+    t90: Option<f64>,
+}
+
+impl Recorder {
+    /// A recorder for a run of `settle_ticks` hold + `run_ticks`, the steadiness metrics
+    /// over the last `steady_window_ticks`, the RMS error from `rms_from_ticks` after the
+    /// command; `sigma_allow_pa` for the stress ratio; `first_encoder` the link encoder
+    /// before the first tick.
+    #[must_use]
+    pub fn new(
+        settle_ticks: u32,
+        run_ticks: u32,
+        steady_window_ticks: u32,
+        rms_from_ticks: u32,
+        sigma_allow_pa: f64,
+        first_encoder: u16,
+    ) -> Recorder {
+        let total = settle_ticks.saturating_add(run_ticks);
+        Recorder {
+            settle_ticks,
+            total,
+            window_from: total.saturating_sub(steady_window_ticks),
+            rms_from_ticks,
+            m: Metrics {
+                allowable_stress_pa: sigma_allow_pa,
+                output_hash: FNV_OFFSET,
+                ..Metrics::default()
+            },
+            start_angle: 0.0,
+            target: 0.0,
+            last_outside: None,
+            max_excess: 0.0,
+            sum_sq: 0.0,
+            n_sq: 0,
+            duty_min: i32::MAX,
+            duty_max: i32::MIN,
+            cnt_min: i32::MAX,
+            cnt_max: i32::MIN,
+            unwrapped: 0,
+            last_enc: first_encoder,
+            t10: None,
+            t90: None,
+        }
+    }
+
+    /// Ticks the run lasts (hold + run).
+    #[must_use]
+    pub const fn total_ticks(&self) -> u32 {
+        self.total
+    }
+
+    /// The command was given at tick `settle_ticks`: the true link angle then and the
+    /// command's final target, rad.
+    pub fn on_command(&mut self, start_angle: f64, target: f64) {
+        self.start_angle = start_angle;
+        self.target = target;
+    }
+
+    /// Records tick `tick` (0-based from the start of the hold): the controller's output
+    /// and the duty actually applied, the readings and true state at the end of the tick.
+    pub fn record(
+        &mut self,
+        tick: u32,
+        out: &model::control::Output,
+        duty: i16,
+        readings: &crate::SensorReadings,
+        st: &crate::TrueState,
+    ) -> Sample {
+        let m = &mut self.m;
+        m.output_hash = fnv1a64(m.output_hash, &duty.to_le_bytes());
+        let after = tick >= self.settle_ticks;
+        let since = i64::from(tick) - i64::from(self.settle_ticks);
+        let t_s = (since + 1) as f64 * 1e-3;
+        let reference = fx32(out.reference.to_bits());
+        let target = self.target;
+
+        m.peak_stress_pa = m.peak_stress_pa.max(f64::from(st.beam_stress_pa).abs());
+        m.peak_spring_torque_nm = m
+            .peak_spring_torque_nm
+            .max(f64::from(st.spring_torque_nm).abs());
+        let d =
+            ((i32::from(readings.link_encoder) - i32::from(self.last_enc) + 2048) & 4095) - 2048;
+        self.last_enc = readings.link_encoder;
+        self.unwrapped = self.unwrapped.saturating_add(d);
+        if after {
+            m.torque_limited |= out.flags.torque_limited;
+            m.current_limited |= out.flags.current_limited;
+            m.duty_saturated |= out.flags.duty_saturated;
+            let err_t = st.link_angle_rad - target;
+            if err_t.abs() > COUNT_RAD {
+                self.last_outside = Some(tick);
+            }
+            let h = target - self.start_angle;
+            if h != 0.0 {
+                let frac = (st.link_angle_rad - self.start_angle) / h;
+                if self.t10.is_none() && frac >= 0.1 {
+                    self.t10 = Some(t_s);
+                }
+                if self.t90.is_none() && frac >= 0.9 {
+                    self.t90 = Some(t_s);
+                }
+                self.max_excess = self.max_excess.max(err_t * h.signum());
+            }
+            if since >= i64::from(self.rms_from_ticks) {
+                let e = reference - st.link_angle_rad;
+                self.sum_sq += e * e;
+                self.n_sq += 1;
+                m.max_error_rad = m.max_error_rad.max(e.abs());
+            }
+        }
+        if tick >= self.window_from {
+            self.duty_min = self.duty_min.min(i32::from(duty));
+            self.duty_max = self.duty_max.max(i32::from(duty));
+            self.cnt_min = self.cnt_min.min(self.unwrapped);
+            self.cnt_max = self.cnt_max.max(self.unwrapped);
+            let e = (st.link_angle_rad - target).abs() / COUNT_RAD;
+            m.steady_state_error_counts = m.steady_state_error_counts.max(e);
+        }
+        Sample {
+            tick,
+            t_s,
+            reference_rad: reference,
+            link_angle_rad: st.link_angle_rad,
+            gear_angle_rad: st.gear_angle_rad,
+            duty,
+            current_a: st.motor_current_a,
+            torque_estimate_nm: fx32(out.torque_estimate.to_bits()),
+            spring_torque_nm: st.spring_torque_nm,
+            beam_stress_pa: st.beam_stress_pa,
+            flags: out.flags,
+            link_encoder: readings.link_encoder,
+        }
+    }
+
+    /// The metrics of the run.
+    #[must_use]
+    pub fn finish(&self) -> Metrics {
+        let mut m = self.m;
+        let total = self.total;
+        let h = self.target - self.start_angle;
+        m.target_rad = self.target;
+        // A change below one count (a hold, a sine about the start) has no overshoot figure.
+        m.overshoot_pct = if h.abs() >= COUNT_RAD {
+            100.0 * self.max_excess / h.abs()
+        } else {
+            0.0
+        };
+        m.rise_time_s = match (self.t10, self.t90) {
+            (Some(a), Some(b)) => Some(b - a),
+            _ => None,
+        };
+        m.settling_time_s = match self.last_outside {
+            None => Some(0.0),
+            Some(t) if t + 1 >= total => None,
+            Some(t) => Some((i64::from(t) - i64::from(self.settle_ticks) + 1) as f64 * 1e-3),
+        };
+        m.peak_stress_ratio = m.peak_stress_pa / m.allowable_stress_pa;
+        m.rms_error_rad = if self.n_sq > 0 {
+            libm::sqrt(self.sum_sq / f64::from(self.n_sq))
+        } else {
+            0.0
+        };
+        m.steady_duty_span = self.duty_max.saturating_sub(self.duty_min).max(0);
+        m.steady_count_span = self.cnt_max.saturating_sub(self.cnt_min).max(0);
+        m.ticks = total;
+        m
+    }
+}
+
+/// The plant for `sc`: its configuration with the load step, preloaded by a constant load.
 ///
 /// # Errors
-/// The controller rejected the configuration or the command.
-pub fn run<F: FnMut(&Sample)>(sc: &Scenario, mut on_sample: F) -> Result<Metrics, ControlError> {
+/// As [`plant_config`].
+pub fn plant_for(sc: &Scenario) -> Result<Plant, ControlError> {
     let mut pc = plant_config(&sc.design, &sc.config, sc.load_nm)?;
     pc.substeps = sc.substeps;
     if let Some(d) = sc.disturbance {
@@ -254,29 +445,32 @@ pub fn run<F: FnMut(&Sample)>(sc: &Scenario, mut on_sample: F) -> Result<Metrics
             * sc.load_nm.signum();
         plant.set_state(f64::from(phi), 0.0, 0.0, 0.0);
     }
+    Ok(plant)
+}
+
+/// σ_allow of `design`, Pa.
+#[must_use]
+pub fn allowable_stress_pa(design: &Design) -> f64 {
+    fx32(design.params().allowable_stress.to_bits()) * 1e6
+}
+
+/// Runs `sc`, calling `on_sample` once per tick, and returns the metrics.
+///
+/// # Errors
+/// The controller rejected the configuration or the command.
+pub fn run<F: FnMut(&Sample)>(sc: &Scenario, mut on_sample: F) -> Result<Metrics, ControlError> {
+    let mut plant = plant_for(sc)?;
     let mut ctl = Controller::new(&sc.design, &sc.config)?;
-    let sigma_allow = fx32(sc.design.params().allowable_stress.to_bits()) * 1e6;
-
-    let total = sc.settle_ticks.saturating_add(sc.run_ticks);
-    let window_from = total.saturating_sub(sc.steady_window_ticks);
     let mut readings = plant.readings();
-    let mut m = Metrics {
-        allowable_stress_pa: sigma_allow,
-        output_hash: FNV_OFFSET,
-        ..Metrics::default()
-    };
-    let mut start_angle = 0.0f64;
-    let mut target = 0.0f64;
-    let mut last_outside: Option<u32> = None;
-    let mut max_excess = 0.0f64;
-    let (mut sum_sq, mut n_sq) = (0.0f64, 0u32);
-    let (mut duty_min, mut duty_max) = (i32::MAX, i32::MIN);
-    let (mut cnt_min, mut cnt_max) = (i32::MAX, i32::MIN);
-    let mut unwrapped: i32 = 0;
-    let mut last_enc = readings.link_encoder;
-    let (mut t10, mut t90) = (None, None);
-
-    for tick in 0..total {
+    let mut rec = Recorder::new(
+        sc.settle_ticks,
+        sc.run_ticks,
+        sc.steady_window_ticks,
+        sc.rms_from_ticks,
+        allowable_stress_pa(&sc.design),
+        readings.link_encoder,
+    );
+    for tick in 0..rec.total_ticks() {
         if tick == sc.settle_ticks {
             ctl.command(sc.command)?;
         }
@@ -292,98 +486,14 @@ pub fn run<F: FnMut(&Sample)>(sc: &Scenario, mut on_sample: F) -> Result<Metrics
         };
         let out = ctl.step(&meas);
         if tick == sc.settle_ticks {
-            start_angle = plant.state().link_angle_rad;
-            target = fx32(ctl.trajectory().target().to_bits());
+            rec.on_command(
+                plant.state().link_angle_rad,
+                fx32(ctl.trajectory().target().to_bits()),
+            );
         }
-        m.output_hash = fnv1a64(m.output_hash, &out.duty.to_le_bytes());
         readings = plant.step_tick(out.duty);
-        let st = plant.state();
-        let after = tick >= sc.settle_ticks;
-        let since = i64::from(tick) - i64::from(sc.settle_ticks);
-        let t_s = (since + 1) as f64 * 1e-3;
-        let reference = fx32(out.reference.to_bits());
-
-        m.peak_stress_pa = m.peak_stress_pa.max(f64::from(st.beam_stress_pa).abs());
-        m.peak_spring_torque_nm = m
-            .peak_spring_torque_nm
-            .max(f64::from(st.spring_torque_nm).abs());
-        let d = ((i32::from(readings.link_encoder) - i32::from(last_enc) + 2048) & 4095) - 2048;
-        last_enc = readings.link_encoder;
-        unwrapped = unwrapped.saturating_add(d);
-        if after {
-            m.torque_limited |= out.flags.torque_limited;
-            m.current_limited |= out.flags.current_limited;
-            m.duty_saturated |= out.flags.duty_saturated;
-            let err_t = st.link_angle_rad - target;
-            if err_t.abs() > COUNT_RAD {
-                last_outside = Some(tick);
-            }
-            let h = target - start_angle;
-            if h != 0.0 {
-                let frac = (st.link_angle_rad - start_angle) / h;
-                if t10.is_none() && frac >= 0.1 {
-                    t10 = Some(t_s);
-                }
-                if t90.is_none() && frac >= 0.9 {
-                    t90 = Some(t_s);
-                }
-                max_excess = max_excess.max(err_t * h.signum());
-            }
-            if since >= i64::from(sc.rms_from_ticks) {
-                let e = reference - st.link_angle_rad;
-                sum_sq += e * e;
-                n_sq += 1;
-                m.max_error_rad = m.max_error_rad.max(e.abs());
-            }
-        }
-        if tick >= window_from {
-            duty_min = duty_min.min(i32::from(out.duty));
-            duty_max = duty_max.max(i32::from(out.duty));
-            cnt_min = cnt_min.min(unwrapped);
-            cnt_max = cnt_max.max(unwrapped);
-            let e = (st.link_angle_rad - target).abs() / COUNT_RAD;
-            m.steady_state_error_counts = m.steady_state_error_counts.max(e);
-        }
-        on_sample(&Sample {
-            tick,
-            t_s,
-            reference_rad: reference,
-            link_angle_rad: st.link_angle_rad,
-            gear_angle_rad: st.gear_angle_rad,
-            duty: out.duty,
-            current_a: st.motor_current_a,
-            torque_estimate_nm: fx32(out.torque_estimate.to_bits()),
-            spring_torque_nm: st.spring_torque_nm,
-            beam_stress_pa: st.beam_stress_pa,
-            flags: out.flags,
-            link_encoder: readings.link_encoder,
-        });
+        let sample = rec.record(tick, &out, out.duty, &readings, &plant.state());
+        on_sample(&sample);
     }
-    let h = target - start_angle;
-    m.target_rad = target;
-    // A change below one count (a hold, a sine about the start) has no overshoot figure.
-    m.overshoot_pct = if h.abs() >= COUNT_RAD {
-        100.0 * max_excess / h.abs()
-    } else {
-        0.0
-    };
-    m.rise_time_s = match (t10, t90) {
-        (Some(a), Some(b)) => Some(b - a),
-        _ => None,
-    };
-    m.settling_time_s = match last_outside {
-        None => Some(0.0),
-        Some(t) if t + 1 >= total => None,
-        Some(t) => Some((i64::from(t) - i64::from(sc.settle_ticks) + 1) as f64 * 1e-3),
-    };
-    m.peak_stress_ratio = m.peak_stress_pa / sigma_allow;
-    m.rms_error_rad = if n_sq > 0 {
-        libm::sqrt(sum_sq / f64::from(n_sq))
-    } else {
-        0.0
-    };
-    m.steady_duty_span = duty_max.saturating_sub(duty_min).max(0);
-    m.steady_count_span = cnt_max.saturating_sub(cnt_min).max(0);
-    m.ticks = total;
-    Ok(m)
+    Ok(rec.finish())
 }

@@ -46,6 +46,7 @@
 mod config;
 mod coupling;
 pub mod harness;
+pub mod scenario;
 mod sensors;
 mod sim;
 

@@ -1,0 +1,356 @@
+//! The servo: the controller under the supervisor, with the enable state machine. This is
+//! the whole per-tick decision of the firmware, from raw readings to what the H-bridge
+//! must do, independent of any hardware (the firmware reads its sensors through drivers,
+//! calls [`Servo::tick`] and applies [`TickOutput::bridge`]).
+//!
+//! States: [`ServoState::Disabled`] (motor off; the controller keeps tracking the sensors)
+//! → [`Servo::enable`] → [`ServoState::Enabled`] (the controller drives) → a fault →
+//! [`ServoState::Faulted`] (motor off in the same tick, latched) → [`Servo::clear_fault`]
+//! → [`ServoState::Disabled`]. Nothing but an explicit clear leaves `Faulted`, and nothing
+//! but an explicit enable turns the motor on.
+
+use crate::control::{Command, Config, ControlError, Controller, Measurements, Output};
+use crate::supervisor::{
+    Fault, FaultSet, Readings, Sensor, Supervisor, SupervisorConfig, SupervisorError,
+};
+use crate::Design;
+
+/// Enable state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ServoState {
+    /// Motor off, waiting for an enable.
+    Disabled,
+    /// The controller drives the motor.
+    Enabled,
+    /// A fault is latched; the motor is off until [`Servo::clear_fault`].
+    Faulted,
+}
+
+/// What the H-bridge must do this tick.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum BridgeDemand {
+    /// Drive with this duty, ‰.
+    Drive(i16),
+    /// Output stage off (disabled).
+    Off,
+}
+
+/// Why a servo request was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ServoError {
+    /// The controller rejected the configuration or command.
+    Control(ControlError),
+    /// The supervisor rejected its configuration.
+    Supervisor(SupervisorError),
+    /// Not allowed while faulted (clear first).
+    Faulted,
+}
+
+/// One tick's raw inputs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TickInput {
+    /// Link encoder, raw counts.
+    pub link_encoder: u16,
+    /// Gear pot, raw counts, if fitted.
+    pub gear_pot: Option<u16>,
+    /// Current ADC, raw counts.
+    pub current_adc: u16,
+    /// A driver failed (its reading is the last good one).
+    pub read_error: Option<Sensor>,
+}
+
+/// One tick's decision.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TickOutput {
+    /// The control tick this is (1-based).
+    pub tick: u32,
+    /// What the H-bridge must do.
+    pub bridge: BridgeDemand,
+    /// The controller's output (estimates, live limits), computed in every state.
+    pub control: Output,
+    /// A fault latched in this tick (the motor is already off in `bridge`).
+    pub new_fault: Option<Fault>,
+    /// State after this tick.
+    pub state: ServoState,
+}
+
+/// The controller, the supervisor and the enable state.
+#[derive(Clone, Debug)]
+pub struct Servo {
+    design: Design,
+    controller: Controller,
+    supervisor: Supervisor,
+    state: ServoState,
+    tick: u32,
+    /// Whether the motor was off during the last tick (the observer must know).
+    was_off: bool,
+}
+
+impl Servo {
+    /// A disabled servo for `design` with the controller and supervisor configurations.
+    ///
+    /// # Errors
+    /// A rejected configuration.
+    pub fn new(
+        design: &Design,
+        config: &Config,
+        supervision: &SupervisorConfig,
+    ) -> Result<Servo, ServoError> {
+        let controller = Controller::new(design, config).map_err(ServoError::Control)?;
+        let supervisor =
+            Supervisor::new(supervision, controller.schedule()).map_err(ServoError::Supervisor)?;
+        Ok(Servo {
+            design: *design,
+            controller,
+            supervisor,
+            state: ServoState::Disabled,
+            tick: 0,
+            was_off: true,
+        })
+    }
+
+    /// The state.
+    #[must_use]
+    pub const fn state(&self) -> ServoState {
+        self.state
+    }
+
+    /// Ticks run so far.
+    #[must_use]
+    pub const fn ticks(&self) -> u32 {
+        self.tick
+    }
+
+    /// The controller.
+    #[must_use]
+    pub const fn controller(&self) -> &Controller {
+        &self.controller
+    }
+
+    /// The supervisor.
+    #[must_use]
+    pub const fn supervisor(&self) -> &Supervisor {
+        &self.supervisor
+    }
+
+    /// The latched faults.
+    #[must_use]
+    pub const fn faults(&self) -> FaultSet {
+        self.supervisor.latched()
+    }
+
+    /// Turns the motor on from `Disabled`: the controller restarts holding the link where
+    /// it is (integrator and filters reset). No effect when already enabled.
+    ///
+    /// # Errors
+    /// [`ServoError::Faulted`] while a fault is latched.
+    pub fn enable(&mut self) -> Result<(), ServoError> {
+        match self.state {
+            ServoState::Faulted => Err(ServoError::Faulted),
+            ServoState::Enabled => Ok(()),
+            ServoState::Disabled => {
+                self.controller.reset();
+                self.state = ServoState::Enabled;
+                Ok(())
+            }
+        }
+    }
+
+    /// Turns the motor off (from any state but `Faulted`, which stays).
+    pub fn disable(&mut self) {
+        if self.state == ServoState::Enabled {
+            self.state = ServoState::Disabled;
+        }
+    }
+
+    /// Clears the latched faults: `Faulted` → `Disabled` (the motor stays off until
+    /// [`Servo::enable`]). A condition still present latches again at the next tick.
+    pub fn clear_fault(&mut self) {
+        self.supervisor.clear();
+        if self.state == ServoState::Faulted {
+            self.state = ServoState::Disabled;
+        }
+    }
+
+    /// A heartbeat from the host, received before the next tick (arms the command
+    /// timeout): counted at the tick about to run.
+    pub fn heartbeat(&mut self) {
+        self.supervisor.heartbeat(self.tick.wrapping_add(1));
+    }
+
+    /// Gives the controller a new command.
+    ///
+    /// # Errors
+    /// [`ServoError::Faulted`] while faulted; the controller's rejection.
+    pub fn command(&mut self, cmd: Command) -> Result<(), ServoError> {
+        if self.state == ServoState::Faulted {
+            return Err(ServoError::Faulted);
+        }
+        self.controller.command(cmd).map_err(ServoError::Control)
+    }
+
+    /// Applies a new controller configuration (e.g. a clutch length) and re-derives the
+    /// supervisor's thresholds; on any error nothing changes.
+    ///
+    /// # Errors
+    /// A rejected configuration.
+    pub fn configure(&mut self, config: &Config) -> Result<(), ServoError> {
+        let mut controller = self.controller.clone();
+        controller.configure(config).map_err(ServoError::Control)?;
+        let mut supervisor = self.supervisor;
+        let sup_cfg = *supervisor.config();
+        supervisor
+            .reconfigure(&sup_cfg, controller.schedule())
+            .map_err(ServoError::Supervisor)?;
+        self.controller = controller;
+        self.supervisor = supervisor;
+        Ok(())
+    }
+
+    /// Restarts on a new configuration: disable, configure, forget the sensor history
+    /// (the mechanism may have been moved or re-mounted meanwhile), enable. Latched faults
+    /// stay latched.
+    ///
+    /// # Errors
+    /// A rejected configuration (nothing changes) or [`ServoError::Faulted`] (configured
+    /// but not enabled).
+    pub fn restart(&mut self, config: &Config) -> Result<(), ServoError> {
+        self.disable();
+        self.configure(config)?;
+        self.supervisor.forget_history();
+        self.enable()
+    }
+
+    /// The design in use.
+    #[must_use]
+    pub const fn design(&self) -> &Design {
+        &self.design
+    }
+
+    fn fault(&mut self) {
+        self.state = ServoState::Faulted;
+        self.was_off = true;
+    }
+
+    /// One 1 kHz tick: controller step on the readings, supervisor checks, and the bridge
+    /// demand (off unless enabled and no fault latched, including one found now).
+    pub fn tick(&mut self, input: &TickInput) -> TickOutput {
+        self.tick = self.tick.wrapping_add(1);
+        let m = Measurements {
+            link_encoder: input.link_encoder,
+            gear_pot: input.gear_pot,
+            current_adc: input.current_adc,
+            applied_duty: if self.was_off { Some(0) } else { None },
+        };
+        let control = self.controller.step(&m);
+        let readings = Readings {
+            link_encoder: input.link_encoder,
+            gear_pot: input.gear_pot,
+            current_adc: input.current_adc,
+            read_error: input.read_error,
+        };
+        let new_fault = self.supervisor.check(self.tick, &readings, &control);
+        if new_fault.is_some() {
+            self.fault();
+        }
+        let bridge = if self.state == ServoState::Enabled {
+            BridgeDemand::Drive(control.duty)
+        } else {
+            BridgeDemand::Off
+        };
+        self.was_off = bridge == BridgeDemand::Off;
+        TickOutput {
+            tick: self.tick,
+            bridge,
+            control,
+            new_fault,
+            state: self.state,
+        }
+    }
+
+    /// The firmware found that the tick just run overran its deadline (`busy` sysclk
+    /// counts): latches [`crate::supervisor::FaultCode::DeadlineMissed`] and turns the motor
+    /// off now; the caller disables the bridge when this returns a fault.
+    pub fn deadline_missed(&mut self, busy: u32) -> Option<Fault> {
+        let f = self.supervisor.deadline_missed(self.tick, busy);
+        if f.is_some() {
+            self.fault();
+        }
+        f
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::supervisor::FaultCode;
+    use crate::Length;
+
+    fn servo() -> Servo {
+        let d = Design::paper();
+        Servo::new(
+            &d,
+            &Config::paper(Length::from_int(3)),
+            &SupervisorConfig::DEFAULT,
+        )
+        .unwrap()
+    }
+
+    const QUIET: TickInput = TickInput {
+        link_encoder: 0,
+        gear_pot: Some(512),
+        current_adc: 2048,
+        read_error: None,
+    };
+
+    #[test]
+    fn the_motor_runs_only_between_enable_and_a_fault_and_stays_off_until_clear_and_enable() {
+        let mut s = servo();
+        assert_eq!(s.tick(&QUIET).bridge, BridgeDemand::Off);
+        s.enable().unwrap();
+        assert!(matches!(s.tick(&QUIET).bridge, BridgeDemand::Drive(_)));
+        let mut bad = QUIET;
+        bad.current_adc = 4095;
+        let out = s.tick(&bad);
+        assert_eq!(out.bridge, BridgeDemand::Off, "off in the same tick");
+        assert_eq!(out.new_fault.unwrap().code, FaultCode::AdcOutOfRange);
+        assert_eq!(out.state, ServoState::Faulted);
+        // Healthy again, still off; enable and commands refused while faulted.
+        assert_eq!(s.tick(&QUIET).bridge, BridgeDemand::Off);
+        assert_eq!(s.enable(), Err(ServoError::Faulted));
+        assert_eq!(s.command(Command::Hold), Err(ServoError::Faulted));
+        s.clear_fault();
+        assert_eq!(s.state(), ServoState::Disabled);
+        assert_eq!(s.tick(&QUIET).bridge, BridgeDemand::Off);
+        s.enable().unwrap();
+        assert!(matches!(s.tick(&QUIET).bridge, BridgeDemand::Drive(_)));
+    }
+
+    #[test]
+    fn an_overrun_turns_the_motor_off() {
+        let mut s = servo();
+        s.enable().unwrap();
+        s.tick(&QUIET);
+        let f = s.deadline_missed(200_000).unwrap();
+        assert_eq!(
+            (f.code, f.value, f.tick),
+            (FaultCode::DeadlineMissed, 200_000, 1)
+        );
+        assert_eq!(s.tick(&QUIET).bridge, BridgeDemand::Off);
+    }
+
+    #[test]
+    fn a_rejected_configuration_changes_nothing() {
+        let mut s = servo();
+        let before = s.supervisor().torque_capacity();
+        let mut cfg = Config::paper(Length::from_int(3));
+        cfg.link_inertia = crate::Inertia::from_int(0);
+        assert!(s.configure(&cfg).is_err());
+        assert_eq!(s.supervisor().torque_capacity(), before);
+        s.configure(&Config::paper(Length::from_int(5))).unwrap();
+        assert!(s.supervisor().torque_capacity() < before);
+    }
+}

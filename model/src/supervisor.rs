@@ -1,0 +1,698 @@
+//! The supervisor (design.md §7): per-tick checks that latch a fault and turn the motor
+//! off in the same tick, separate from the controller's live limits (clamps, which keep
+//! running and are only reported).
+//!
+//! # Checks, in the order they are made each tick
+//!
+//! | code | fault | condition | value (unit) |
+//! |---|---|---|---|
+//! | 1 | [`FaultCode::SensorRead`] | a driver returned an error | sensor ([`Sensor`] as `u8`) |
+//! | 2 | [`FaultCode::AdcOutOfRange`] | current ADC outside `adc_min..=adc_max` (the rails: saturated or open) | raw counts |
+//! | 3 | [`FaultCode::OverCurrent`] | \|i\| > trip current | mA |
+//! | 4 | [`FaultCode::SensorJump`] | link encoder moved more than the physics allows in one tick, or the pot did | counts |
+//! | 5 | [`FaultCode::SensorStuck`] | the deflection pot − encoder is beyond the beams' envelope, the link count has not changed for `stuck_ticks`, and the torque estimate is below half the capacity (the link reading is frozen while the gear moves on) | µrad of deflection |
+//! | 6 | [`FaultCode::BeamOverload`] | \|τ̂\| > τ_cap(L), or the measured deflection is beyond the envelope | µN·m, or µrad |
+//! | 7 | [`FaultCode::PositionLimit`] | measured link angle outside the position window | µrad |
+//! | 8 | [`FaultCode::DeadlineMissed`] | the control period overran (reported by the firmware) | sysclk counts of the tick |
+//! | 9 | [`FaultCode::CommandTimeout`] | heartbeats armed and none for `command_timeout_ms` | ms since the last |
+//!
+//! Deflection envelope: φ_b + θ_cap(L) + one pot count + half an encoder count (the two
+//! quantisations): any larger measured deflection means the beams are bent beyond their
+//! stress capacity or a sensor lies. The jump bound is `max_link_speed`·1 ms + 1 count.
+//!
+//! Every threshold is converted to the per-tick formats when the supervisor is built
+//! ([`Supervisor::new`]), never per tick; the per-tick work is compares and one multiply.
+
+use crate::control::{Output, Schedule};
+use crate::units::{Angle, Torque};
+use fixed::types::I32F32;
+
+/// One radian as I32F32 bits.
+const Q32_ONE: i64 = 1 << 32;
+/// One encoder count, rad, as I32F32 bits: 2π/4096·2³².
+const COUNT_Q32: i64 = 6_588_397;
+/// One pot count, rad, as I32F32 bits: (300° in rad)/1024·2³².
+const POT_COUNT_Q32: i64 = 21_961_324;
+/// Encoder counts per revolution.
+const ENCODER_COUNTS: i32 = 4096;
+/// Pot counts (full scale).
+const POT_COUNTS: i32 = 1024;
+/// Current ADC counts at 0 A and per ampere.
+const ADC_MID: i32 = 2048;
+const ADC_COUNTS_PER_A: i64 = 1024;
+
+/// What went wrong. The discriminant is the code logged and sent to the host.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum FaultCode {
+    /// A sensor driver returned an error.
+    SensorRead = 1,
+    /// The current ADC reads at a rail.
+    AdcOutOfRange = 2,
+    /// The motor current exceeds the trip level.
+    OverCurrent = 3,
+    /// A sensor reading changed more than the physics allows in one tick.
+    SensorJump = 4,
+    /// The link encoder is frozen while the gear moves on.
+    SensorStuck = 5,
+    /// The beams carry more than their stress-limited capacity.
+    BeamOverload = 6,
+    /// The link is outside its position window.
+    PositionLimit = 7,
+    /// A control period overran its deadline.
+    DeadlineMissed = 8,
+    /// No heartbeat from the host for the timeout.
+    CommandTimeout = 9,
+}
+
+impl FaultCode {
+    /// Every code, in check order.
+    pub const ALL: [FaultCode; 9] = [
+        FaultCode::SensorRead,
+        FaultCode::AdcOutOfRange,
+        FaultCode::OverCurrent,
+        FaultCode::SensorJump,
+        FaultCode::SensorStuck,
+        FaultCode::BeamOverload,
+        FaultCode::PositionLimit,
+        FaultCode::DeadlineMissed,
+        FaultCode::CommandTimeout,
+    ];
+
+    /// Short name, as logged (`over-current`, …).
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            FaultCode::SensorRead => "sensor-read",
+            FaultCode::AdcOutOfRange => "adc-out-of-range",
+            FaultCode::OverCurrent => "over-current",
+            FaultCode::SensorJump => "sensor-jump",
+            FaultCode::SensorStuck => "sensor-stuck",
+            FaultCode::BeamOverload => "beam-overload",
+            FaultCode::PositionLimit => "position-limit",
+            FaultCode::DeadlineMissed => "deadline-missed",
+            FaultCode::CommandTimeout => "command-timeout",
+        }
+    }
+
+    /// The code's bit in a [`FaultSet`].
+    #[must_use]
+    pub const fn bit(self) -> u16 {
+        1 << (self as u8)
+    }
+}
+
+/// Which sensor a [`FaultCode::SensorRead`] or [`FaultCode::SensorJump`] is about.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum Sensor {
+    /// Link magnetic encoder.
+    LinkEncoder = 1,
+    /// Gear potentiometer.
+    GearPot = 2,
+    /// Motor current ADC.
+    CurrentAdc = 3,
+}
+
+/// A latched fault: what, the offending value (unit per [`FaultCode`], see the module
+/// table) and the tick it was detected in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Fault {
+    /// What.
+    pub code: FaultCode,
+    /// The offending value.
+    pub value: i32,
+    /// The control tick (1-based count of ticks since start).
+    pub tick: u32,
+}
+
+/// A set of fault codes (bit `code` set when latched).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FaultSet(pub u16);
+
+impl FaultSet {
+    /// Whether `code` is in the set.
+    #[must_use]
+    pub const fn contains(self, code: FaultCode) -> bool {
+        self.0 & code.bit() != 0
+    }
+
+    /// No fault.
+    #[must_use]
+    pub const fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+}
+
+/// Supervisor settings in engineering units (validated by [`Supervisor::new`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SupervisorConfig {
+    /// Over-current trip, A, in (0, 2). Default 1.75 A: above the controller's default
+    /// 1.5 A clamp plus noise, below the ADC's ±2 A full scale.
+    pub trip_current_a: I32F32,
+    /// Lowest valid current ADC reading, counts. Default 16.
+    pub adc_min: u16,
+    /// Highest valid current ADC reading, counts. Default 4079.
+    pub adc_max: u16,
+    /// Fastest plausible link speed, rad/s, in (0, 1000]. Default 60 rad/s (the AX-12A's
+    /// gear reaches 6.2 rad/s; the link may ring faster on the beams).
+    pub max_link_speed: I32F32,
+    /// Largest plausible change of the gear pot in one tick, counts. Default 8 (0.04 rad,
+    /// six times the no-load gear speed).
+    pub max_pot_jump: u16,
+    /// Ticks without a link-count change before a frozen encoder is suspected. Default 2.
+    pub stuck_ticks: u16,
+    /// Link position window, rad: lowest. Default −2.5 rad (the AX-12A turns 300° = ±2.62).
+    pub position_min: Angle,
+    /// Link position window, rad: highest. Default +2.5 rad.
+    pub position_max: Angle,
+    /// Heartbeat timeout, ms, ≥ 1. Armed by the first heartbeat. Default 100 ms.
+    pub command_timeout_ms: u32,
+}
+
+impl SupervisorConfig {
+    /// The defaults above.
+    pub const DEFAULT: SupervisorConfig = SupervisorConfig {
+        trip_current_a: I32F32::lit("1.75"),
+        adc_min: 16,
+        adc_max: 4079,
+        max_link_speed: I32F32::lit("60"),
+        max_pot_jump: 8,
+        stuck_ticks: 2,
+        position_min: Angle::from_fixed(I32F32::lit("-2.5")),
+        position_max: Angle::from_fixed(I32F32::lit("2.5")),
+        command_timeout_ms: 100,
+    };
+}
+
+impl Default for SupervisorConfig {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// Why a [`SupervisorConfig`] was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum SupervisorError {
+    /// `trip_current_a` not in (0, 2) A.
+    TripCurrent,
+    /// `adc_min` ≥ `adc_max`, or `adc_max` > 4095.
+    AdcWindow,
+    /// `max_link_speed` not in (0, 1000] rad/s, or `max_pot_jump` is 0 or ≥ 1024.
+    JumpBound,
+    /// `stuck_ticks` is 0.
+    StuckTicks,
+    /// `position_min` ≥ `position_max`.
+    PositionWindow,
+    /// `command_timeout_ms` is 0.
+    Timeout,
+}
+
+/// Inputs of one check, besides the controller's output.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Readings {
+    /// Link encoder, raw counts.
+    pub link_encoder: u16,
+    /// Gear pot, raw counts, if the board has one.
+    pub gear_pot: Option<u16>,
+    /// Current ADC, raw counts.
+    pub current_adc: u16,
+    /// A driver failed this tick.
+    pub read_error: Option<Sensor>,
+}
+
+/// Thresholds in per-tick formats (see [`Supervisor::new`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Thresholds {
+    trip_adc: i32,
+    adc_min: u16,
+    adc_max: u16,
+    max_jump_counts: i32,
+    max_pot_jump: i32,
+    stuck_ticks: u16,
+    /// τ_cap(L), I32F32 bits.
+    torque_cap: i64,
+    /// Deflection envelope, I32F32 bits (rad).
+    envelope: i64,
+    pot_center: i32,
+    position_min: i64,
+    position_max: i64,
+    timeout_ticks: u32,
+}
+
+/// The supervisor: thresholds derived from the configuration, the latch and the little
+/// history the checks need.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Supervisor {
+    cfg: SupervisorConfig,
+    th: Thresholds,
+    latched: FaultSet,
+    first: Option<Fault>,
+    prev_encoder: Option<u16>,
+    prev_pot: Option<u16>,
+    unchanged_ticks: u16,
+    last_heartbeat: Option<u32>,
+}
+
+impl Supervisor {
+    /// Derives the thresholds from `cfg` and the controller's schedule (τ_cap, θ_cap and
+    /// φ_b at the configured clutch length, the pot calibration).
+    ///
+    /// # Errors
+    /// [`SupervisorError`] for a setting out of its documented range.
+    pub fn new(cfg: &SupervisorConfig, sched: &Schedule) -> Result<Supervisor, SupervisorError> {
+        let th = Self::thresholds(cfg, sched)?;
+        Ok(Supervisor {
+            cfg: *cfg,
+            th,
+            latched: FaultSet(0),
+            first: None,
+            prev_encoder: None,
+            prev_pot: None,
+            unchanged_ticks: 0,
+            last_heartbeat: None,
+        })
+    }
+
+    /// Re-derives the thresholds for a new schedule (clutch length changed), keeping the
+    /// latch and the history. On error nothing changes.
+    ///
+    /// # Errors
+    /// As [`Supervisor::new`].
+    pub fn reconfigure(
+        &mut self,
+        cfg: &SupervisorConfig,
+        sched: &Schedule,
+    ) -> Result<(), SupervisorError> {
+        self.th = Self::thresholds(cfg, sched)?;
+        self.cfg = *cfg;
+        Ok(())
+    }
+
+    fn thresholds(cfg: &SupervisorConfig, sched: &Schedule) -> Result<Thresholds, SupervisorError> {
+        let trip = cfg.trip_current_a.to_bits();
+        if trip <= 0 || trip >= 2 * Q32_ONE {
+            return Err(SupervisorError::TripCurrent);
+        }
+        if cfg.adc_min >= cfg.adc_max || cfg.adc_max > 4095 {
+            return Err(SupervisorError::AdcWindow);
+        }
+        let speed = cfg.max_link_speed.to_bits();
+        if speed <= 0 || speed > 1000 * Q32_ONE {
+            return Err(SupervisorError::JumpBound);
+        }
+        if cfg.max_pot_jump == 0 || i32::from(cfg.max_pot_jump) >= POT_COUNTS {
+            return Err(SupervisorError::JumpBound);
+        }
+        if cfg.stuck_ticks == 0 {
+            return Err(SupervisorError::StuckTicks);
+        }
+        if cfg.position_min.to_bits() >= cfg.position_max.to_bits() {
+            return Err(SupervisorError::PositionWindow);
+        }
+        if cfg.command_timeout_ms == 0 {
+            return Err(SupervisorError::Timeout);
+        }
+        // Counts per tick at max speed: speed[rad/s]·1e-3 s / count, rounded up, + 1.
+        let per_tick = speed / 1000;
+        let max_jump_counts = (per_tick + COUNT_Q32 - 1) / COUNT_Q32 + 1;
+        let setting = sched.setting();
+        let envelope = sched
+            .free_play()
+            .to_bits()
+            .saturating_add(setting.deflection_capacity().to_bits())
+            .saturating_add(POT_COUNT_Q32)
+            .saturating_add(COUNT_Q32 / 2);
+        Ok(Thresholds {
+            // |adc − mid| > trip·1024, rounded down: trips at or above the trip current.
+            trip_adc: ((trip * ADC_COUNTS_PER_A) >> 32) as i32,
+            adc_min: cfg.adc_min,
+            adc_max: cfg.adc_max,
+            max_jump_counts: max_jump_counts.clamp(1, i64::from(ENCODER_COUNTS / 2)) as i32,
+            max_pot_jump: i32::from(cfg.max_pot_jump),
+            stuck_ticks: cfg.stuck_ticks,
+            torque_cap: setting.torque_capacity().to_bits(),
+            envelope,
+            pot_center: sched.pot_center,
+            position_min: cfg.position_min.to_bits(),
+            position_max: cfg.position_max.to_bits(),
+            timeout_ticks: cfg.command_timeout_ms,
+        })
+    }
+
+    /// The configuration in use.
+    #[must_use]
+    pub const fn config(&self) -> &SupervisorConfig {
+        &self.cfg
+    }
+
+    /// τ_cap(L) the overload check uses.
+    #[must_use]
+    pub fn torque_capacity(&self) -> Torque {
+        Torque::from_bits(self.th.torque_cap)
+    }
+
+    /// Deflection envelope (φ_b + θ_cap + quantisation) the overload and stuck checks use.
+    #[must_use]
+    pub fn deflection_envelope(&self) -> Angle {
+        Angle::from_bits(self.th.envelope)
+    }
+
+    /// Largest plausible link-encoder change per tick, counts.
+    #[must_use]
+    pub const fn max_jump_counts(&self) -> i32 {
+        self.th.max_jump_counts
+    }
+
+    /// The latched faults.
+    #[must_use]
+    pub const fn latched(&self) -> FaultSet {
+        self.latched
+    }
+
+    /// The first fault latched since the last clear.
+    #[must_use]
+    pub const fn first_fault(&self) -> Option<Fault> {
+        self.first
+    }
+
+    /// Records a heartbeat from the host at `tick`; the first one arms the timeout.
+    pub fn heartbeat(&mut self, tick: u32) {
+        self.last_heartbeat = Some(tick);
+    }
+
+    /// Stops the heartbeat timeout (the host said goodbye).
+    pub fn disarm_heartbeat(&mut self) {
+        self.last_heartbeat = None;
+    }
+
+    /// Forgets the sensor history (last readings, frozen-count counter): the next tick
+    /// is the first of a new run, e.g. after the mechanism was re-mounted.
+    pub fn forget_history(&mut self) {
+        self.prev_encoder = None;
+        self.prev_pot = None;
+        self.unchanged_ticks = 0;
+    }
+
+    /// Clears the latch (the caller decides when the motor may run again).
+    pub fn clear(&mut self) {
+        self.latched = FaultSet(0);
+        self.first = None;
+    }
+
+    fn latch(&mut self, code: FaultCode, value: i32, tick: u32) -> Option<Fault> {
+        if self.latched.contains(code) {
+            return None;
+        }
+        self.latched.0 |= code.bit();
+        let fault = Fault { code, value, tick };
+        if self.first.is_none() {
+            self.first = Some(fault);
+        }
+        Some(fault)
+    }
+
+    /// Reports a control period that overran, measured by the firmware (`busy` sysclk
+    /// counts); latches [`FaultCode::DeadlineMissed`].
+    pub fn deadline_missed(&mut self, tick: u32, busy: u32) -> Option<Fault> {
+        let v = i32::try_from(busy).unwrap_or(i32::MAX);
+        self.latch(FaultCode::DeadlineMissed, v, tick)
+    }
+
+    /// Runs the per-tick checks on this tick's readings and the controller's output and
+    /// returns the first fault newly latched in this tick, if any (later checks of the
+    /// same tick still latch their codes in [`Supervisor::latched`]).
+    pub fn check(&mut self, tick: u32, r: &Readings, out: &Output) -> Option<Fault> {
+        let mut new: Option<Fault> = None;
+        let mut note = |s: &mut Self, code: FaultCode, value: i32| {
+            if let Some(f) = s.latch(code, value, tick) {
+                if new.is_none() {
+                    new = Some(f);
+                }
+            }
+        };
+        let th = self.th;
+
+        if let Some(sensor) = r.read_error {
+            note(self, FaultCode::SensorRead, sensor as i32);
+        }
+
+        // Current: the rails first (a saturated or open ADC says nothing about i).
+        if r.current_adc < th.adc_min || r.current_adc > th.adc_max {
+            note(self, FaultCode::AdcOutOfRange, i32::from(r.current_adc));
+        } else {
+            let adc = i32::from(r.current_adc) - ADC_MID;
+            if adc.abs() > th.trip_adc {
+                // mA = counts·1000/1024.
+                note(self, FaultCode::OverCurrent, adc * 1000 / 1024);
+            }
+        }
+
+        // Encoder jump (wrapped difference).
+        let mut link_moved = true;
+        if let Some(prev) = self.prev_encoder {
+            let d = (i32::from(r.link_encoder) - i32::from(prev)) & (ENCODER_COUNTS - 1);
+            let d = if d >= ENCODER_COUNTS / 2 {
+                d - ENCODER_COUNTS
+            } else {
+                d
+            };
+            if d.abs() > th.max_jump_counts {
+                note(self, FaultCode::SensorJump, d);
+            }
+            link_moved = d != 0;
+        }
+        self.prev_encoder = Some(r.link_encoder);
+        self.unchanged_ticks = if link_moved {
+            0
+        } else {
+            self.unchanged_ticks.saturating_add(1)
+        };
+
+        // Deflection from the pot: θ_g − θ_l against the envelope.
+        if let Some(pot) = r.gear_pot {
+            if let Some(prev) = self.prev_pot {
+                let d = i32::from(pot) - i32::from(prev);
+                if d.abs() > th.max_pot_jump {
+                    note(self, FaultCode::SensorJump, d);
+                }
+            }
+            self.prev_pot = Some(pot);
+            let theta_g = i64::from(i32::from(pot) - th.pot_center).saturating_mul(POT_COUNT_Q32);
+            let phi = theta_g.saturating_sub(out.link_angle.to_bits());
+            if phi.saturating_abs() > th.envelope {
+                let tau = out.torque_estimate.to_bits().saturating_abs();
+                let micro = to_micro(phi);
+                if self.unchanged_ticks >= th.stuck_ticks && tau < th.torque_cap / 2 {
+                    note(self, FaultCode::SensorStuck, micro);
+                } else {
+                    note(self, FaultCode::BeamOverload, micro);
+                }
+            }
+        } else {
+            self.prev_pot = None;
+        }
+
+        let tau = out.torque_estimate.to_bits();
+        if tau.saturating_abs() > th.torque_cap {
+            note(self, FaultCode::BeamOverload, to_micro(tau));
+        }
+
+        let theta = out.link_angle.to_bits();
+        if theta < th.position_min || theta > th.position_max {
+            note(self, FaultCode::PositionLimit, to_micro(theta));
+        }
+
+        if let Some(last) = self.last_heartbeat {
+            let since = tick.wrapping_sub(last);
+            if since > th.timeout_ticks {
+                note(
+                    self,
+                    FaultCode::CommandTimeout,
+                    i32::try_from(since).unwrap_or(i32::MAX),
+                );
+            }
+        }
+        new
+    }
+}
+
+/// I32F32 bits → millionths (µrad, µN·m), saturated to i32.
+fn to_micro(bits: i64) -> i32 {
+    let v = (i128::from(bits) * 1_000_000) >> 32;
+    v.clamp(i128::from(i32::MIN), i128::from(i32::MAX)) as i32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::control::Config;
+    use crate::{Design, Length};
+
+    fn sup(len_mm: i32) -> (Supervisor, Schedule) {
+        let d = Design::paper();
+        let sched = Schedule::new(&d, &Config::paper(Length::from_int(len_mm))).unwrap();
+        (
+            Supervisor::new(&SupervisorConfig::DEFAULT, &sched).unwrap(),
+            sched,
+        )
+    }
+
+    fn quiet(enc: u16) -> Readings {
+        Readings {
+            link_encoder: enc,
+            gear_pot: Some(512),
+            current_adc: 2048,
+            read_error: None,
+        }
+    }
+
+    fn at_rest() -> Output {
+        Output {
+            link_angle: Angle::from_bits(COUNT_Q32 / 2),
+            ..Output::default()
+        }
+    }
+
+    #[test]
+    fn a_quiet_actuator_raises_nothing() {
+        let (mut s, _) = sup(3);
+        for t in 1..100 {
+            assert_eq!(s.check(t, &quiet(0), &at_rest()), None);
+        }
+        assert!(s.latched().is_empty());
+    }
+
+    #[test]
+    fn thresholds_follow_the_configuration() {
+        let (s, sched) = sup(5);
+        // 60 rad/s·1 ms = 0.06 rad = 39.1 counts → 40 + 1.
+        assert_eq!(s.max_jump_counts(), 41);
+        assert_eq!(s.torque_capacity(), sched.setting().torque_capacity());
+        let env = s.deflection_envelope().to_bits();
+        let parts = sched.free_play().to_bits() + sched.setting().deflection_capacity().to_bits();
+        assert_eq!(env, parts + POT_COUNT_Q32 + COUNT_Q32 / 2);
+    }
+
+    #[test]
+    fn each_check_latches_its_code_with_value_and_tick() {
+        let (mut s, _) = sup(3);
+        s.check(1, &quiet(0), &at_rest());
+        // ADC rail.
+        let mut r = quiet(0);
+        r.current_adc = 4095;
+        let f = s.check(2, &r, &at_rest()).unwrap();
+        assert_eq!(
+            (f.code, f.value, f.tick),
+            (FaultCode::AdcOutOfRange, 4095, 2)
+        );
+        // Over-current: 1.8 A = 2048 + 1843.
+        r.current_adc = 2048 + 1843;
+        let f = s.check(3, &r, &at_rest()).unwrap();
+        assert_eq!((f.code, f.value), (FaultCode::OverCurrent, 1799));
+        // Already latched codes are not reported again.
+        assert_eq!(s.check(4, &r, &at_rest()), None);
+        assert!(s.latched().contains(FaultCode::AdcOutOfRange));
+        assert_eq!(s.first_fault().unwrap().code, FaultCode::AdcOutOfRange);
+        s.clear();
+        assert!(s.latched().is_empty());
+        let f = s.check(5, &r, &at_rest()).unwrap();
+        assert_eq!(f.code, FaultCode::OverCurrent);
+    }
+
+    #[test]
+    fn an_encoder_jump_beyond_the_speed_bound_is_a_sensor_fault() {
+        let (mut s, _) = sup(3);
+        s.check(1, &quiet(4090), &at_rest());
+        // Wrapping by 41 counts (4090 → 35) is allowed, 42 is not.
+        assert_eq!(s.check(2, &quiet(35), &at_rest()), None);
+        let f = s.check(3, &quiet(77), &at_rest()).unwrap();
+        assert_eq!((f.code, f.value), (FaultCode::SensorJump, 42));
+    }
+
+    #[test]
+    fn torque_beyond_capacity_is_an_overload_and_the_window_a_position_limit() {
+        let (mut s, sched) = sup(5);
+        let cap = sched.setting().torque_capacity().to_bits();
+        let mut out = at_rest();
+        out.torque_estimate = Torque::from_bits(cap);
+        assert_eq!(s.check(1, &quiet(0), &out), None);
+        out.torque_estimate = Torque::from_bits(-cap - 1);
+        assert_eq!(
+            s.check(2, &quiet(0), &out).unwrap().code,
+            FaultCode::BeamOverload
+        );
+        let mut out = at_rest();
+        out.link_angle = Angle::from_bits(-(5 * Q32_ONE) / 2 - 1);
+        let mut no_pot = quiet(0);
+        no_pot.gear_pot = None; // the pot would see a deflection
+        let f = s.check(3, &no_pot, &out).unwrap();
+        assert_eq!((f.code, f.value), (FaultCode::PositionLimit, -2_500_001));
+    }
+
+    #[test]
+    fn deflection_beyond_the_envelope_is_overload_unless_the_encoder_is_frozen() {
+        let (mut s, _) = sup(1);
+        // Pot 4 counts (0.020 rad) off the link: beyond φ_b + θ_cap + margins at L = 1 mm.
+        let mut r = quiet(0);
+        r.gear_pot = Some(516);
+        s.check(1, &quiet(0), &at_rest());
+        let f = s.check(2, &r, &at_rest()).unwrap();
+        // The link count did not change in 1 tick only: not yet "stuck".
+        assert_eq!(f.code, FaultCode::BeamOverload);
+        let (mut s, _) = sup(1);
+        for t in 1..=3 {
+            assert_eq!(s.check(t, &quiet(0), &at_rest()), None);
+        }
+        let f = s.check(4, &r, &at_rest()).unwrap();
+        assert_eq!(f.code, FaultCode::SensorStuck);
+        assert!(f.value > 19_000, "{f:?}");
+    }
+
+    #[test]
+    fn the_heartbeat_timeout_is_armed_by_the_first_heartbeat() {
+        let (mut s, _) = sup(3);
+        assert_eq!(s.check(500, &quiet(0), &at_rest()), None);
+        s.heartbeat(500);
+        assert_eq!(s.check(600, &quiet(0), &at_rest()), None);
+        let f = s.check(601, &quiet(0), &at_rest()).unwrap();
+        assert_eq!((f.code, f.value), (FaultCode::CommandTimeout, 101));
+    }
+
+    #[test]
+    fn bad_settings_are_rejected() {
+        let d = Design::paper();
+        let sched = Schedule::new(&d, &Config::paper(Length::from_int(3))).unwrap();
+        let bad = |f: fn(&mut SupervisorConfig)| {
+            let mut c = SupervisorConfig::DEFAULT;
+            f(&mut c);
+            Supervisor::new(&c, &sched).unwrap_err()
+        };
+        assert_eq!(
+            bad(|c| c.trip_current_a = I32F32::ZERO),
+            SupervisorError::TripCurrent
+        );
+        assert_eq!(
+            bad(|c| c.trip_current_a = I32F32::lit("2")),
+            SupervisorError::TripCurrent
+        );
+        assert_eq!(bad(|c| c.adc_min = 4079), SupervisorError::AdcWindow);
+        assert_eq!(bad(|c| c.adc_max = 4096), SupervisorError::AdcWindow);
+        assert_eq!(
+            bad(|c| c.max_link_speed = I32F32::ZERO),
+            SupervisorError::JumpBound
+        );
+        assert_eq!(bad(|c| c.max_pot_jump = 0), SupervisorError::JumpBound);
+        assert_eq!(bad(|c| c.stuck_ticks = 0), SupervisorError::StuckTicks);
+        assert_eq!(
+            bad(|c| c.position_max = c.position_min),
+            SupervisorError::PositionWindow
+        );
+        assert_eq!(bad(|c| c.command_timeout_ms = 0), SupervisorError::Timeout);
+    }
+}
