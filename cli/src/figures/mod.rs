@@ -10,6 +10,7 @@
 //! * `capacity`: stress-limited torque capacity τ_cap(L) with the 2 N·m line.
 
 mod closed_loop;
+mod energy;
 mod plot;
 mod text;
 
@@ -78,7 +79,7 @@ pub fn run(args: &FiguresArgs) -> CliResult<()> {
     plot::register_font().map_err(CliError::runtime)?;
     let design = Design::paper();
     type Make = fn(&Design) -> Result<(Figure, Csv), String>;
-    let figures: [(&str, Make); 6] = [
+    let figures: [(&str, Make); 7] = [
         ("fig4_hysteresis", fig4_hysteresis),
         ("fig5_stiffness", fig5_stiffness),
         ("fig6_deflection", fig6_deflection),
@@ -88,6 +89,7 @@ pub fn run(args: &FiguresArgs) -> CliResult<()> {
             closed_loop::fig8_identified_stiffness,
         ),
         ("fig9_step_responses", closed_loop::fig9_step_responses),
+        ("energy_per_cycle", energy::energy_per_cycle_figure),
     ];
     for (name, make) in figures {
         let (fig, csv) = make(&design).map_err(|e| CliError::runtime(format!("{name}: {e}")))?;
