@@ -5,11 +5,13 @@
 //!
 //! Priorities (highest first):
 //! 3. `control_tick`: hardware task bound to SysTick at 1 kHz. It runs one control period
-//!    (`control::ControlLoop::tick`) and detects a missed deadline: if SysTick fired again
-//!    before the task finished, the period overran and is counted.
-//! 1. `telemetry`: once per second, logs the tick and overrun counts of that second. On the
-//!    emulated boards it also ends the run after the requested number of seconds and
-//!    exits QEMU with the self-check's verdict.
+//!    (`control::ControlLoop::tick`: world → sensors → servo → H-bridge) and detects a
+//!    missed deadline: if SysTick fired again before the task finished, the period overran
+//!    (the supervisor latches `deadline-missed` and the motor goes off). Everything to log
+//!    goes into a bounded queue, never blocking: a full queue drops and counts.
+//! 1. `log`: drains the queue into defmt: faults, the once-a-second timing report, and on
+//!    the emulated boards the scenario's events, results and final verdict (then QEMU
+//!    exits with it).
 //! 0. `idle`: waits for interrupts (`board::wait_for_interrupt`: WFI on the real board;
 //!    see `board::qemu` for why the emulated boards spin by default).
 #![no_std]
@@ -34,6 +36,7 @@ compile_error!(
 
 mod board;
 mod control;
+mod report;
 mod run;
 mod timing;
 
@@ -41,9 +44,14 @@ mod timing;
 mod app {
     use crate::board;
     use crate::control::ControlLoop;
-    use crate::run::{IdleMode, RunConfig, SelfCheck};
-    use crate::timing::{self, SecondReport, TickAccounting};
-    use cortex_m::peripheral::{SCB, SYST};
+    use crate::report::{LogItem, Reporter};
+    use crate::run::RunConfig;
+    use crate::timing::{self, TickAccounting};
+    use cortex_m::peripheral::SYST;
+    use heapless::spsc::{Consumer, Producer, Queue};
+
+    /// Items waiting for the log task (a tick's worth of events several times over).
+    const LOG_QUEUE: usize = 16;
 
     #[shared]
     struct Shared {}
@@ -53,92 +61,89 @@ mod app {
         control: ControlLoop,
         accounting: TickAccounting,
         board_clock: board::IndependentClock,
-        run: RunConfig,
-        self_check: SelfCheck,
-        idle_mode: IdleMode,
         panic_at_tick: Option<u32>,
+        log_tx: Producer<'static, LogItem>,
+        log_rx: Consumer<'static, LogItem>,
+        dropped: u32,
+        reporter: Reporter,
+        idle_mode: crate::run::IdleMode,
     }
 
-    #[init]
+    #[init(local = [queue: Queue<LogItem, LOG_QUEUE> = Queue::new()])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let mut core = cx.core;
-        let parts = board::init(cx.device);
-        let run = board::run_config();
+        let run: RunConfig = board::run_config();
+        let parts = board::init(cx.device, &run);
+        let (log_tx, log_rx) = cx.local.queue.split();
         timing::start_systick(&mut core.SYST, board::SYSCLK_HZ);
         defmt::info!(
-            "vsa firmware {=str} on {=str}: sysclk {=u32} Hz, control loop {=u32} Hz, run {=u32} s (0 = forever), idle {}",
+            "vsa firmware {=str} on {=str}: sysclk {=u32} Hz, control loop {=u32} Hz, idle {}",
             env!("CARGO_PKG_VERSION"),
             board::NAME,
             board::SYSCLK_HZ,
             timing::CONTROL_HZ,
-            run.seconds.unwrap_or(0),
             run.idle,
         );
         (
             Shared {},
             Local {
-                control: ControlLoop::new(),
+                control: ControlLoop::new(parts.servo, parts.io, parts.world),
                 accounting: TickAccounting::new(),
                 board_clock: parts.clock,
-                idle_mode: run.idle,
                 panic_at_tick: run.panic_at_tick,
-                run,
-                self_check: SelfCheck::new(),
+                log_tx,
+                log_rx,
+                dropped: 0,
+                idle_mode: run.idle,
+                reporter: Reporter::new(run),
             },
         )
     }
 
     /// The 1 kHz control period, at the highest priority.
-    #[task(binds = SysTick, priority = 3, local = [control, accounting, board_clock, panic_at_tick])]
+    #[task(binds = SysTick, priority = 3, local = [control, accounting, board_clock, panic_at_tick, log_tx, dropped])]
     fn control_tick(cx: control_tick::Context) {
-        let start = SYST::get_current();
+        let entry = SYST::get_current();
         let tick = cx.local.accounting.ticks() + 1;
         if *cx.local.panic_at_tick == Some(tick) {
             panic!("injected panic at tick {}", tick);
         }
         let now_us = cx.local.board_clock.now_us();
-        cx.local.control.tick();
-        let busy_counts = timing::systick_elapsed(start, SYST::get_current(), board::SYSCLK_HZ);
-        // SysTick pending again while we still run it: the next period has already begun.
-        let overrun = SCB::is_pendst_pending();
+        let result = cx.local.control.tick(entry);
         timing::publish_tick(tick);
-        if let Some(report) = cx.local.accounting.on_tick(now_us, overrun, busy_counts) {
-            if telemetry::spawn(report).is_err() {
-                cx.local.accounting.note_dropped_report();
+
+        let tx = cx.local.log_tx;
+        let dropped_so_far = *cx.local.dropped;
+        let dropped = cx.local.dropped;
+        let mut push = |item: LogItem| {
+            if tx.enqueue(item).is_err() {
+                *dropped = dropped.saturating_add(1);
             }
+        };
+        // The world's events of this tick (an injection) before the fault they cause.
+        board::drain_world(cx.local.control, &mut push);
+        if let Some(fault) = result.fault {
+            push(LogItem::Fault(fault));
+        }
+        if let Some(mut report) =
+            cx.local
+                .accounting
+                .on_tick(now_us, result.overran, result.busy_counts)
+        {
+            report.dropped_reports = dropped_so_far;
+            push(LogItem::Second(report));
+        }
+        if !tx.is_empty() {
+            // Already pending or running: it drains everything queued when it runs.
+            let _ = log::spawn();
         }
     }
 
-    /// Once-a-second log line, and the end of an emulated run.
-    #[task(priority = 1, local = [run, self_check])]
-    async fn telemetry(cx: telemetry::Context, report: SecondReport) {
-        defmt::info!(
-            "second {=u32}: {=u32} ticks, {=u32} overruns, tick busy max {=u32} sysclk cycles, {=u32} reports dropped",
-            report.second,
-            report.ticks,
-            report.overruns,
-            report.busy_max_counts,
-            report.dropped_reports,
-        );
-        cx.local.self_check.record(&report);
-        if cx.local.run.is_last_second(report.second) {
-            let verdict = cx.local.self_check.verdict();
-            if verdict.passed() {
-                defmt::info!(
-                    "self-check passed: {=u32} s, {=u32} ticks/s in every second, 0 overruns",
-                    verdict.seconds,
-                    timing::CONTROL_HZ
-                );
-            } else {
-                defmt::error!(
-                    "self-check FAILED: {=u32} s, ticks/s min {=u32} max {=u32}, {=u32} overruns",
-                    verdict.seconds,
-                    verdict.min_ticks,
-                    verdict.max_ticks,
-                    verdict.overruns
-                );
-            }
-            board::exit(verdict.passed());
+    /// Writes the queued items to defmt (and ends an emulated run).
+    #[task(priority = 1, local = [log_rx, reporter])]
+    async fn log(cx: log::Context) {
+        while let Some(item) = cx.local.log_rx.dequeue() {
+            cx.local.reporter.log(item);
         }
     }
 

@@ -77,6 +77,34 @@ pub struct TickOutput {
     pub state: ServoState,
 }
 
+/// A configuration checked and turned into gains and thresholds ahead of time (the slow
+/// maths: roots, divisions), ready for [`Servo::restart_prepared`] to install in a tick.
+#[derive(Clone, Debug)]
+pub struct Prepared {
+    controller: Controller,
+    supervisor: Supervisor,
+}
+
+impl Prepared {
+    /// Prepares `config` for `design` with the supervisor settings `supervision`.
+    ///
+    /// # Errors
+    /// A rejected configuration.
+    pub fn new(
+        design: &Design,
+        config: &Config,
+        supervision: &SupervisorConfig,
+    ) -> Result<Prepared, ServoError> {
+        let controller = Controller::new(design, config).map_err(ServoError::Control)?;
+        let supervisor =
+            Supervisor::new(supervision, controller.schedule()).map_err(ServoError::Supervisor)?;
+        Ok(Prepared {
+            controller,
+            supervisor,
+        })
+    }
+}
+
 /// The controller, the supervisor and the enable state.
 #[derive(Clone, Debug)]
 pub struct Servo {
@@ -220,6 +248,22 @@ impl Servo {
     pub fn restart(&mut self, config: &Config) -> Result<(), ServoError> {
         self.disable();
         self.configure(config)?;
+        self.supervisor.forget_history();
+        self.enable()
+    }
+
+    /// [`Servo::restart`] with a configuration prepared ahead of time: disable, install
+    /// its controller and thresholds (a copy, no maths), forget the sensor history, enable.
+    /// Latched faults stay latched (the servo is then left disabled).
+    ///
+    /// # Errors
+    /// [`ServoError::Faulted`].
+    pub fn restart_prepared(&mut self, prepared: &Prepared) -> Result<(), ServoError> {
+        self.disable();
+        let latched = self.supervisor;
+        self.controller = prepared.controller.clone();
+        self.supervisor.install_thresholds(&prepared.supervisor);
+        debug_assert_eq!(self.supervisor.latched(), latched.latched());
         self.supervisor.forget_history();
         self.enable()
     }

@@ -345,6 +345,13 @@ impl Supervisor {
         })
     }
 
+    /// Takes the configuration and thresholds of `other` (built for another schedule),
+    /// keeping this supervisor's latch and history.
+    pub fn install_thresholds(&mut self, other: &Supervisor) {
+        self.cfg = other.cfg;
+        self.th = other.th;
+    }
+
     /// The configuration in use.
     #[must_use]
     pub const fn config(&self) -> &SupervisorConfig {

@@ -7,7 +7,7 @@
 //! 1. [`ScenarioRun::begin_tick`] with the H-bridge lines as they are now: the script's
 //!    injections for this tick are applied, the plant advances one control period with
 //!    those lines, and the sensor readings and the servo actions for this tick come back;
-//! 2. the caller applies the actions ([`apply`]), reads the sensors, runs
+//! 2. the caller applies the actions ([`ScenarioRun::apply`]), reads the sensors, runs
 //!    [`Servo::tick`], drives the bridge, and reports an overrun if the tick overran (the
 //!    `Overrun` injection asks it to busy-wait past the deadline);
 //! 3. [`ScenarioRun::end_tick`] records the metrics, the output hash and the fault
@@ -26,7 +26,7 @@
 
 use heapless::Deque;
 use model::control::{Command, Config};
-use model::servo::{BridgeDemand, Servo, ServoError, ServoState, TickOutput};
+use model::servo::{BridgeDemand, Prepared, Servo, ServoError, ServoState, TickOutput};
 use model::supervisor::{Fault, FaultCode, Supervisor, SupervisorConfig};
 use model::{Angle, Design, Length};
 
@@ -144,9 +144,10 @@ pub enum Injection {
 /// What the caller must do to the servo at the start of a tick, before [`Servo::tick`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Action {
-    /// [`Servo::restart`] on this configuration (a new segment on a fresh mechanism: the
-    /// controller restarts holding where the link is).
-    Restart(Config),
+    /// [`Servo::restart_prepared`] with segment `n`'s configuration, prepared when the
+    /// scenario was built (a new segment on a fresh mechanism: the controller restarts
+    /// holding where the link is).
+    Restart(u8),
     /// A raw step by this much from the current reference.
     StepBy(Angle),
     /// A minimum-jerk move by this much from the current reference, in this many ms.
@@ -155,13 +156,21 @@ pub enum Action {
     Heartbeat,
 }
 
-/// Applies `action` to `servo` (the same on the host and on the firmware).
+/// Applies `action` to `servo` with the segment configurations `prepared` (the same on
+/// the host and on the firmware).
 ///
 /// # Errors
 /// The servo rejected it.
-pub fn apply(servo: &mut Servo, action: &Action) -> Result<(), ServoError> {
+fn apply_action(
+    servo: &mut Servo,
+    action: &Action,
+    prepared: &[Option<Prepared>; 5],
+) -> Result<(), ServoError> {
     match *action {
-        Action::Restart(cfg) => servo.restart(&cfg),
+        Action::Restart(n) => match prepared.get(usize::from(n)) {
+            Some(Some(p)) => servo.restart_prepared(p),
+            _ => Err(ServoError::Faulted),
+        },
         Action::StepBy(by) => {
             let target = servo.controller().trajectory().target().saturating_add(by);
             servo.command(Command::Step { target })
@@ -253,7 +262,7 @@ impl Plan {
         let hold = |mm: i32| Segment {
             clutch_mm: mm,
             load_nm: 0.3,
-            hold_ticks: 600,
+            hold_ticks: 1100,
             run_ticks: 0,
             motion: None,
         };
@@ -305,7 +314,7 @@ impl Plan {
                     clutch_mm: 1,
                     load_nm: 0.3,
                     hold_ticks: 250,
-                    run_ticks: 350,
+                    run_ticks: 850,
                     motion: Some(Action::MoveBy(
                         Angle::from_fixed(fixed::types::I32F32::lit("0.5")),
                         200,
@@ -447,10 +456,20 @@ struct Truth {
     trip_current_a: f64,
 }
 
+/// A segment's simulated mechanism and figures, built with the scenario (not in a tick).
+#[derive(Clone)]
+struct SegmentWorld {
+    plant: Plant,
+    truth: Truth,
+    stiffness_nm_per_rad: f64,
+}
+
 /// A scenario in progress (see the module doc for the per-tick protocol).
 pub struct ScenarioRun {
     plan: Plan,
     design: Design,
+    worlds: [Option<SegmentWorld>; 5],
+    prepared: [Option<Prepared>; 5],
     plant: Plant,
     seg_index: usize,
     seg_tick: u32,
@@ -481,12 +500,28 @@ impl ScenarioRun {
     pub fn new(id: ScenarioId) -> Result<ScenarioRun, ServoError> {
         let plan = Plan::of(id);
         let design = Design::paper();
-        let first = plan.segments[0].ok_or(ServoError::Faulted)?;
-        let (plant, truth) = Self::segment_world(&plan, &design, &first)?;
+        let mut worlds: [Option<SegmentWorld>; 5] = Default::default();
+        let mut prepared: [Option<Prepared>; 5] = Default::default();
+        for ((seg, world), prep) in plan.segments.iter().zip(&mut worlds).zip(&mut prepared) {
+            if let Some(seg) = seg {
+                *world = Some(Self::segment_world(&plan, &design, seg)?);
+                *prep = Some(Prepared::new(
+                    &design,
+                    &plan.config(seg),
+                    &plan.supervision,
+                )?);
+            }
+        }
+        let Some(first) = worlds[0].clone() else {
+            return Err(ServoError::Faulted);
+        };
+        let (plant, truth) = (first.plant, first.truth);
         let readings = plant.readings();
         Ok(ScenarioRun {
             plan,
             design,
+            worlds,
+            prepared,
             plant,
             seg_index: 0,
             seg_tick: 0,
@@ -524,11 +559,19 @@ impl ScenarioRun {
         )
     }
 
+    /// Applies `action` to `servo` (the same on the host and on the firmware).
+    ///
+    /// # Errors
+    /// The servo rejected it.
+    pub fn apply(&self, servo: &mut Servo, action: &Action) -> Result<(), ServoError> {
+        apply_action(servo, action, &self.prepared)
+    }
+
     fn segment_world(
         plan: &Plan,
         design: &Design,
         seg: &Segment,
-    ) -> Result<(Plant, Truth), ServoError> {
+    ) -> Result<SegmentWorld, ServoError> {
         let cfg = plan.config(seg);
         let sc = Scenario {
             load_nm: seg.load_nm,
@@ -546,7 +589,11 @@ impl ScenarioRun {
             position_max: fx32(plan.supervision.position_max.to_bits()),
             trip_current_a: fx32(plan.supervision.trip_current_a.to_bits()),
         };
-        Ok((plant, truth))
+        Ok(SegmentWorld {
+            plant,
+            truth,
+            stiffness_nm_per_rad: sched.stiffness().to_bits() as f64 / (Q32 * Q32),
+        })
     }
 
     /// The plan.
@@ -635,25 +682,18 @@ impl ScenarioRun {
         }
         if self.seg_tick == 0 {
             // A new segment: a fresh (preloaded) plant, the servo restarted on it.
-            if self.seg_index > 0 {
-                match Self::segment_world(&self.plan, &self.design, &seg) {
-                    Ok((plant, truth)) => {
-                        self.plant = plant;
-                        self.truth = truth;
-                    }
-                    Err(_) => {
-                        self.done = true;
-                        return false;
-                    }
-                }
-            }
-            let _ = actions.push(Action::Restart(self.plan.config(&seg)));
-            let (k, cap) = self.stiffness_and_capacity(&seg);
+            let Some(world) = self.worlds.get(self.seg_index).cloned().flatten() else {
+                self.done = true;
+                return false;
+            };
+            self.plant = world.plant;
+            self.truth = world.truth;
+            let _ = actions.push(Action::Restart(self.seg_index as u8));
             self.push(ScenarioEvent::SegmentStart {
                 index: self.seg_index as u8,
                 clutch_mm: seg.clutch_mm,
-                stiffness_nm_per_rad: k,
-                torque_capacity_nm: cap,
+                stiffness_nm_per_rad: world.stiffness_nm_per_rad,
+                torque_capacity_nm: world.truth.torque_cap_nm,
                 tick: t,
             });
             self.readings = self.plant.readings();
@@ -687,17 +727,6 @@ impl ScenarioRun {
         }
         self.watch_condition(t);
         overrun
-    }
-
-    fn stiffness_and_capacity(&self, seg: &Segment) -> (f64, f64) {
-        let cfg = self.plan.config(seg);
-        match model::control::Schedule::new(&self.design, &cfg) {
-            Ok(s) => (
-                s.stiffness().to_bits() as f64 / (Q32 * Q32),
-                fx32(s.setting().torque_capacity().to_bits()),
-            ),
-            Err(_) => (f64::NAN, f64::NAN),
-        }
     }
 
     /// Records the first tick at which the true state meets the scenario's condition.
@@ -852,7 +881,7 @@ pub fn run_on_host<F: FnMut(&ScenarioEvent)>(
         for a in &actions {
             // A refused action (e.g. a command while faulted) is part of the scenario's
             // behaviour, not an error of the run.
-            let _ = apply(&mut servo, a);
+            let _ = run.apply(&mut servo, a);
         }
         let r = run.readings();
         let out = servo.tick(&model::servo::TickInput {

@@ -1,7 +1,8 @@
 //! `cargo xtask`: set-up, build, run and test automation for vsa.
 //!
-//! - `cargo xtask run [--board qemu-m4|qemu-m3] [--seconds N]`: the firmware on an
-//!   emulated board, its defmt log decoded.
+//! - `cargo xtask run [--board qemu-m4|qemu-m3] [--scenario NAME]`: the firmware on an
+//!   emulated board running a scenario (default: the step sweep), its defmt log decoded,
+//!   and the host simulation's hash of the same scenario for comparison.
 //! - `cargo xtask test`: formatting, clippy (host and every board), host tests, release
 //!   builds of every board, and each emulated board's self-test.
 //! - `cargo xtask flash`: the Nucleo-F446RE firmware through probe-rs.
@@ -13,6 +14,7 @@ mod defmt_log;
 mod firmware;
 mod flash;
 mod qemu;
+mod scenarios;
 mod setup;
 mod test;
 
@@ -22,6 +24,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use board::Board;
+use plant::scenario::ScenarioId;
 
 #[derive(Parser)]
 #[command(
@@ -40,9 +43,13 @@ enum Task {
         /// Emulated board.
         #[arg(long, value_enum, default_value = "qemu-m4")]
         board: Board,
-        /// Seconds of emulated time before the firmware exits by itself.
-        #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=3600))]
-        seconds: u32,
+        /// Scenario the emulated board runs: `step-sweep` (the paper's experiment) or one
+        /// of the fault injections (`cargo xtask run --scenario list` lists them).
+        #[arg(long, default_value = "step-sweep")]
+        scenario: String,
+        /// Stop after this many seconds of emulated time even if the scenario has not ended.
+        #[arg(long, value_parser = clap::value_parser!(u32).range(1..=3600))]
+        seconds: Option<u32>,
         /// How the firmware's idle loop waits on the emulated board (`wfi` shows QEMU's
         /// icount sleep=off defect: 500 ticks per emulated second).
         #[arg(long, value_parser = ["spin", "wfi"], default_value = "spin")]
@@ -59,6 +66,7 @@ enum Task {
         board: Board,
         elf: PathBuf,
         /// Arguments passed to the firmware.
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
         args: Vec<String>,
     },
 }
@@ -77,6 +85,7 @@ fn dispatch(task: Task) -> Result<ExitCode> {
     match task {
         Task::Run {
             board,
+            scenario,
             seconds,
             idle,
         } => {
@@ -85,17 +94,31 @@ fn dispatch(task: Task) -> Result<ExitCode> {
                 "{} is a real board: use `cargo xtask flash`",
                 board.feature()
             );
+            if scenario == "list" {
+                for id in ScenarioId::ALL {
+                    println!("{}", id.name());
+                }
+                return Ok(ExitCode::SUCCESS);
+            }
+            let Some(id) = ScenarioId::parse(&scenario) else {
+                let names: Vec<_> = ScenarioId::ALL.iter().map(|s| s.name()).collect();
+                anyhow::bail!(
+                    "unknown scenario `{scenario}`; the scenarios are: {}",
+                    names.join(", ")
+                );
+            };
             setup::ensure_targets()?;
             setup::ensure_qemu()?;
             eprintln!("xtask: building the {} firmware (release)", board.feature());
             let elf = firmware::build(board)?;
-            let args = vec![
-                "--seconds".to_owned(),
-                seconds.to_string(),
-                "--idle".to_owned(),
-                idle,
-            ];
-            emulate(board, &elf, &args, test::wall_limit(seconds))
+            let mut args = scenarios::firmware_args(id);
+            args.extend(["--idle".to_owned(), idle]);
+            if let Some(s) = seconds {
+                args.extend(["--seconds".to_owned(), s.to_string()]);
+            }
+            let (code, outcome) = emulate(board, &elf, &args, test::wall_limit(60))?;
+            scenarios::print_host_comparison(id, &outcome)?;
+            Ok(code)
         }
         Task::Test => Ok(if test::run()? {
             ExitCode::SUCCESS
@@ -105,7 +128,7 @@ fn dispatch(task: Task) -> Result<ExitCode> {
         Task::Flash => flash::run(),
         Task::QemuRunner { board, elf, args } => {
             setup::ensure_qemu()?;
-            emulate(board, &elf, &args, test::wall_limit(3600))
+            Ok(emulate(board, &elf, &args, test::wall_limit(3600))?.0)
         }
     }
 }
@@ -116,7 +139,7 @@ fn emulate(
     elf: &std::path::Path,
     args: &[String],
     limit: std::time::Duration,
-) -> Result<ExitCode> {
+) -> Result<(ExitCode, qemu::RunOutcome)> {
     println!(
         "{} on QEMU {} (-icount shift={}), firmware arguments: {}",
         board.feature(),
@@ -126,5 +149,6 @@ fn emulate(
     );
     let outcome = qemu::run(board, elf, args, limit, |line| println!("{line}"))?;
     println!("firmware exit status: {}", outcome.exit_code);
-    Ok(ExitCode::from(u8::try_from(outcome.exit_code).unwrap_or(1)))
+    let code = ExitCode::from(u8::try_from(outcome.exit_code).unwrap_or(1));
+    Ok((code, outcome))
 }

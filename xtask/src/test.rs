@@ -7,10 +7,8 @@ use std::time::Duration;
 
 use crate::board::Board;
 use crate::cmd::{cargo, describe};
-use crate::{checks, firmware, qemu, setup};
-
-/// Seconds of emulated time each board's self-test runs.
-const SELF_TEST_SECONDS: u32 = 3;
+use crate::{checks, firmware, qemu, scenarios, setup};
+use plant::scenario::ScenarioId;
 
 /// Control tick at which the panic-handler test panics on purpose.
 const PANIC_TICK: u32 = 1500;
@@ -90,16 +88,14 @@ pub fn run() -> Result<bool> {
     }
 
     for (board, elf) in elfs.iter().filter(|(b, _)| b.qemu_machine().is_some()) {
-        let args = vec!["--seconds".to_owned(), SELF_TEST_SECONDS.to_string()];
-        let result = qemu::run(*board, elf, &args, wall_limit(SELF_TEST_SECONDS), |line| {
-            println!("[{}] {line}", board.feature())
-        })
-        .and_then(|outcome| {
-            let failures = checks::self_test_failures(&outcome, SELF_TEST_SECONDS);
-            anyhow::ensure!(failures.is_empty(), "{}", failures.join("; "));
-            Ok(())
-        });
-        tally.record(&format!("self-test on {}", board.feature()), result);
+        for id in ScenarioId::ALL {
+            let args = scenarios::firmware_args(id);
+            let result = qemu::run(*board, elf, &args, wall_limit(15), |line| {
+                println!("[{} {}] {line}", board.feature(), id.name())
+            })
+            .and_then(|outcome| scenarios::check(id, &outcome));
+            tally.record(&format!("{} on {}", id.name(), board.feature()), result);
+        }
     }
 
     for (board, elf) in elfs.iter().filter(|(b, _)| b.qemu_machine().is_some()) {

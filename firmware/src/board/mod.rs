@@ -1,13 +1,18 @@
 //! Board support: everything that differs between the boards, behind one small surface.
 //!
 //! Each board module provides `pac` (the device crate RTIC binds to), `NAME`,
-//! `SYSCLK_HZ`, `init`, `run_config` and `exit`. The free-running µs clock on TIM2 is
+//! `SYSCLK_HZ`, `init`, `run_config`, `exit`, the actuator I/O `Io` (driver traits) and the
+//! `World` around the control step, with `drain_world` for its log events. The free-running µs clock on TIM2 is
 //! shared code: it is the tick accounting's independent time base.
 
 #[cfg(any(feature = "qemu-m4", feature = "qemu-m3"))]
 mod qemu;
 #[cfg(any(feature = "qemu-m4", feature = "qemu-m3"))]
 pub use qemu::*;
+#[cfg(any(feature = "qemu-m4", feature = "qemu-m3"))]
+mod sim;
+#[cfg(any(feature = "qemu-m4", feature = "qemu-m3"))]
+pub use sim::*;
 
 #[cfg(feature = "nucleo-f446re")]
 mod nucleo;
@@ -29,6 +34,13 @@ pub fn wait_for_interrupt(mode: IdleMode) {
 pub struct Parts {
     /// Free-running µs clock, independent of SysTick.
     pub clock: IndependentClock,
+    /// The actuator's sensors and H-bridge, behind the `drivers` traits.
+    pub io: Io,
+    /// What surrounds the control step: the simulated actuator and its scenario on the
+    /// emulated boards, the watchdog on the real one.
+    pub world: World,
+    /// The servo (controller + supervisor), configured for the board.
+    pub servo: model::servo::Servo,
 }
 
 /// TIM2 as a free-running 32-bit µs counter (wraps after 71 minutes; readers use

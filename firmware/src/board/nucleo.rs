@@ -3,30 +3,87 @@
 //!
 //! # Pins
 //!
-//! The one table of what is wired where. Drivers of the later issues use exactly these.
+//! The one table of what is wired where. The drivers in [`Io`] use exactly these.
 //!
-//! | function                        | pin  | peripheral           | Nucleo header |
-//! |---------------------------------|------|----------------------|---------------|
-//! | H-bridge PWM (IN1)              | PA8  | TIM1_CH1, AF1, 20 kHz| CN9 D7        |
-//! | H-bridge direction (IN2/PHASE)  | PA9  | GPIO out             | CN5 D8        |
-//! | H-bridge enable (EN / nSLEEP)   | PA10 | GPIO out, low = off  | CN9 D2        |
-//! | link encoder A                  | PA6  | TIM3_CH1, AF2 (QEI)  | CN5 D12       |
-//! | link encoder B                  | PA7  | TIM3_CH2, AF2 (QEI)  | CN5 D11       |
-//! | motor current sense             | PA0  | ADC1_IN0             | CN8 A0        |
-//! | gear-side potentiometer         | PA1  | ADC1_IN1             | CN8 A1        |
-//! | host link TX (USB VCP)          | PA2  | USART2_TX, AF7       | ST-LINK VCP   |
-//! | host link RX (USB VCP)          | PA3  | USART2_RX, AF7       | ST-LINK VCP   |
-//! | independent µs clock            | –    | TIM2 (internal)      | –             |
-//! | watchdog                        | –    | IWDG (LSI)           | –             |
+//! | function                        | pin  | peripheral                       | Nucleo header |
+//! |---------------------------------|------|----------------------------------|---------------|
+//! | H-bridge PWM (IN1)              | PA8  | TIM1_CH1, AF1, 20 kHz            | CN9 D7        |
+//! | H-bridge direction (IN2/PHASE)  | PA9  | GPIO out, push-pull              | CN5 D8        |
+//! | H-bridge enable (EN / nSLEEP)   | PA10 | GPIO out, push-pull, low = off   | CN9 D2        |
+//! | link encoder A                  | PA6  | TIM3_CH1, AF2 (QEI)              | CN5 D12       |
+//! | link encoder B                  | PA7  | TIM3_CH2, AF2 (QEI)              | CN5 D11       |
+//! | motor current sense             | PA0  | ADC1_IN0                         | CN8 A0        |
+//! | gear-side potentiometer         | PA1  | ADC1_IN1                         | CN8 A1        |
+//! | host link TX (USB VCP)          | PA2  | USART2_TX, AF7                   | ST-LINK VCP   |
+//! | host link RX (USB VCP)          | PA3  | USART2_RX, AF7                   | ST-LINK VCP   |
+//! | independent µs clock            | –    | TIM2 (internal)                  | –             |
+//! | watchdog                        | –    | IWDG (LSI), 80 ms                | –             |
 //!
-//! Clocks: 8 MHz HSE bypass from the ST-LINK's MCO → PLL → 180 MHz SYSCLK, APB1 45 MHz
-//! (timers 90 MHz), APB2 90 MHz (timers 180 MHz).
+//! From reset until `init` configures them (and again after any reset) the pins are floating
+//! inputs: the bridge board must hold IN1 and EN low with pull-downs of its own.
+//!
+//! # Clocks
+//!
+//! 8 MHz HSE bypass from the ST-LINK's MCO → PLL → 180 MHz SYSCLK (over-drive on), APB1
+//! 45 MHz (timers 90 MHz), APB2 90 MHz (timers 180 MHz), ADC 90 MHz / 4 = 22.5 MHz. `init`
+//! checks the frozen clocks against these constants, which everything below is derived from.
+//!
+//! # Peripherals behind the driver traits ([`Io`])
+//!
+//! - [`MotorPwm`]: TIM1 CH1, edge-aligned PWM mode 1, PSC = 0, ARR = 8999: 180 MHz / 9000 =
+//!   20 kHz, duty resolution 1/9000. CCR1 is preloaded (RM0390 requires it in PWM mode), so a
+//!   new duty takes effect at the next period; except 0, which forces an update event so
+//!   that the output is low at once: [`drivers::HBridge`] relies on "PWM off" having happened
+//!   before it flips the direction pin.
+//! - [`LinkEncoder`]: TIM3 in encoder mode 3 (both edges of both inputs: 1024 lines × 4 =
+//!   4096 counts per turn), 16-bit counter wrapping at 65 536 = 16 × 4096, so `CNT mod 4096`
+//!   is the angle in either direction through the wrap. Input filter: 8 samples at 90 MHz
+//!   (89 ns). The ABI output is incremental (no index wired): counts are relative to the
+//!   link's position at power-up.
+//! - [`GearPot`] and [`CurrentAdc`]: ADC1, software-started single conversions, 12-bit,
+//!   sample time 56 ADC cycles: (56 + 12) / 22.5 MHz = 3.02 µs per conversion, ≈ 6 µs for
+//!   both per tick. 56 cycles allow a source impedance up to ≈ 57 kΩ at 12 bits (datasheet
+//!   R_AIN formula, C_ADC 4 pF, R_ADC 6 kΩ). A conversion polls EOC at most
+//!   `ADC_POLL_LIMIT` = 1000 times (≥ 7× the polls a conversion needs, ≈ 20–60 µs), then
+//!   aborts the conversion (ADON off and on, 5 µs to stabilise) and returns
+//!   [`SensorError::Timeout`]: never hangs, never panics. The HAL's `Adc::convert`
+//!   spins on STRT and EOC without bound (and panics if no conversion started), so ADC1 is
+//!   driven through the PAC. Both sensors share ADC1; each conversion runs in a critical
+//!   section (≈ 3 µs with interrupts masked, at most one poll limit on a timeout), so the two
+//!   handles may live in different tasks. The current is sampled at whatever phase of the
+//!   PWM period the tick falls on (not synchronised to TIM1).
+//! - [`World`]: the independent watchdog, LSI / 32 (1 ms per count at the nominal 32 kHz),
+//!   reload 79: 80 ms nominal, 54–151 ms over the LSI's 17–47 kHz datasheet range. The
+//!   1 kHz tick feeds it ([`World::begin_tick`]); a loop that stalls (a tick that never
+//!   returns, SysTick no longer firing, interrupts masked, a panic: panic-probe ends in a
+//!   HardFault loop) stops feeding it and the IWDG resets the MCU, which puts every pin back
+//!   to a floating input (bridge off through its pull-downs). The next boot logs that the
+//!   reset came from the watchdog. It is started last in `init`, so init's own work
+//!   is not counted; the first tick follows 1 ms after RTIC's init returns.
+//!
+//! With a debugger attached and the core halted, TIM1 stops with its output forced low and
+//! the watchdog pauses (DBGMCU freeze bits), so a breakpoint neither drives the motor nor
+//! resets the board. Without a debugger the freeze bits have no effect.
 
 use super::{IndependentClock, Parts};
 use crate::run::{IdleMode, RunConfig};
+use core::cell::RefCell;
+use core::convert::Infallible;
+use cortex_m::interrupt::{self, Mutex};
 use defmt_rtt as _;
+use drivers::{AngleSensor, CurrentSensor, SensorError};
+use model::control::Config as ControlConfig;
+use model::servo::{Servo, TickOutput};
+use model::supervisor::{Fault, SupervisorConfig};
+use model::{Design, Length};
 use panic_probe as _;
-use stm32f4xx_hal::{prelude::*, rcc::Config, timer::FTimerUs};
+use stm32f4xx_hal::{
+    gpio::{Alternate, Analog, Output, PinState, PushPull, PA0, PA1, PA10, PA6, PA7, PA8, PA9},
+    prelude::*,
+    qei::Qei,
+    rcc::{Config, Enable, Reset},
+    timer::FTimerUs,
+};
 
 pub use stm32f4xx_hal::pac;
 
@@ -36,31 +93,444 @@ pub const NAME: &str = "nucleo-f446re (STM32F446RE, Cortex-M4F)";
 /// Core clock, Hz.
 pub const SYSCLK_HZ: u32 = 180_000_000;
 
-/// Sets the clocks and starts the independent µs clock.
-pub fn init(device: pac::Peripherals) -> Parts {
+/// APB1 clock, Hz (its timers, TIM2 and TIM3, run at twice this).
+const PCLK1_HZ: u32 = 45_000_000;
+
+/// APB2 clock, Hz: ADC1's bus clock.
+const PCLK2_HZ: u32 = 90_000_000;
+
+/// TIM1's input clock, Hz: twice PCLK2, since the APB2 prescaler is not 1 (RM0390, RCC
+/// clock tree, with TIMPRE = 0).
+const TIM1_CLOCK_HZ: u32 = 2 * PCLK2_HZ;
+
+/// H-bridge PWM frequency, Hz.
+const PWM_HZ: u32 = 20_000;
+
+/// TIM1 counts per PWM period (PSC = 0): ARR = 8999, duty 0..=9000.
+const PWM_PERIOD_TICKS: u16 = (TIM1_CLOCK_HZ / PWM_HZ) as u16;
+const _: () = assert!(TIM1_CLOCK_HZ.is_multiple_of(PWM_HZ) && TIM1_CLOCK_HZ / PWM_HZ <= 65_535);
+
+/// ADC clock, Hz: PCLK2 / 4 (ADCPRE = 01); the F446's ADC allows up to 36 MHz at VDDA ≥ 2.4 V.
+const ADC_CLOCK_HZ: u32 = PCLK2_HZ / 4;
+const _: () = assert!(ADC_CLOCK_HZ <= 36_000_000);
+
+/// ADC1 channel of the motor current sense (PA0).
+const CURRENT_CHANNEL: u8 = 0;
+
+/// ADC1 channel of the gear-side potentiometer (PA1).
+const POT_CHANNEL: u8 = 1;
+
+/// ADC cycles of one 12-bit conversion: 56 sampling + 12 conversion (RM0390, ADC:
+/// conversion time).
+const ADC_CONVERSION_CYCLES: u32 = 56 + 12;
+
+/// Core cycles of one conversion (544 at 180 MHz / 22.5 MHz, i.e. 3.02 µs).
+const ADC_CONVERSION_CORE_CYCLES: u32 = ADC_CONVERSION_CYCLES * (SYSCLK_HZ / ADC_CLOCK_HZ);
+
+/// EOC polls before a conversion is given up as [`SensorError::Timeout`]. One poll (an APB2
+/// load, a test, the loop branch) takes at least 4 core cycles, so a conversion completes
+/// within 544 / 4 = 136 polls; the limit leaves a margin of more than 7 and bounds a
+/// timeout to ≈ 20–60 µs.
+const ADC_POLL_LIMIT: u32 = 1_000;
+const _: () = assert!(ADC_POLL_LIMIT >= 7 * ADC_CONVERSION_CORE_CYCLES / 4);
+
+/// Wait after ADON before the first conversion: 5 µs > t_STAB (3 µs max, datasheet).
+const ADC_STABILISATION_CORE_CYCLES: u32 = 5 * (SYSCLK_HZ / 1_000_000);
+
+/// Link encoder counts per turn (1024 lines × 4 edges).
+const LINK_COUNTS_PER_TURN: u16 = 4096;
+
+/// Watchdog timeout, ms at the nominal LSI of 32 kHz (LSI / 32 = 1 count per ms).
+const WATCHDOG_TIMEOUT_MS: u16 = 80;
+
+/// How long `init` waits for the IWDG to take its prescaler and reload (normally ≈ 0.3 ms;
+/// the bound is STM32Cube's: 6 LSI periods at the largest prescaler).
+const WATCHDOG_UPDATE_WAIT_MS: u32 = 50;
+
+/// The board's sensors and motor driver, behind the `drivers` traits.
+pub struct Io {
+    /// Link-side angle: TIM3 quadrature encoder, 4096 counts per turn.
+    pub link: LinkEncoder,
+    /// Gear-side angle: potentiometer on ADC1, 1024 counts full scale.
+    pub pot: GearPot,
+    /// Motor current: shunt amplifier on ADC1, 12-bit raw.
+    pub current: CurrentAdc,
+    /// The H-bridge (TIM1 CH1 PWM, direction and enable pins).
+    pub bridge: Bridge,
+}
+
+/// The H-bridge on its PWM channel and pins.
+pub type Bridge = drivers::HBridge<MotorPwm, DirPin, EnPin>;
+
+/// H-bridge direction pin (PA9).
+pub type DirPin = PA9<Output<PushPull>>;
+
+/// H-bridge enable pin (PA10): low = outputs off.
+pub type EnPin = PA10<Output<PushPull>>;
+
+/// Sets the clocks and brings up the peripherals; the watchdog runs from the end of `init`.
+///
+/// # Panics
+/// Only here, at init, with a defmt message: the clocks did not come out as configured,
+/// the H-bridge could not be put in its safe state, or the watchdog did not take its
+/// configuration.
+pub fn init(device: pac::Peripherals, _run: &RunConfig) -> Parts {
+    // Before the clock setup rewrites RCC: was the last reset the watchdog's?
+    let watchdog_reset = device.RCC.csr().read().wdgrstf().bit_is_set();
+    device.RCC.csr().modify(|_, w| w.rmvf().set_bit());
+    if watchdog_reset {
+        defmt::warn!(
+            "the last reset was the independent watchdog's: the control loop stalled for over {=u16} ms",
+            WATCHDOG_TIMEOUT_MS
+        );
+    }
+
     let mut rcc = device.RCC.freeze(
         Config::hse(8.MHz())
             .bypass_hse_oscillator()
             .sysclk(SYSCLK_HZ.Hz())
-            .pclk1(45.MHz())
-            .pclk2(90.MHz()),
+            .pclk1(PCLK1_HZ.Hz())
+            .pclk2(PCLK2_HZ.Hz()),
     );
+    let clocks = rcc.clocks;
+    defmt::assert!(
+        clocks.sysclk().raw() == SYSCLK_HZ
+            && clocks.pclk1().raw() == PCLK1_HZ
+            && clocks.pclk2().raw() == PCLK2_HZ
+            && clocks.timclk2().raw() == TIM1_CLOCK_HZ,
+        "clocks are not as configured: sysclk {=u32} pclk1 {=u32} pclk2 {=u32} timclk2 {=u32} Hz",
+        clocks.sysclk().raw(),
+        clocks.pclk1().raw(),
+        clocks.pclk2().raw(),
+        clocks.timclk2().raw()
+    );
+
+    // A debugger halting the core stops TIM1 with its output off and pauses the watchdog.
+    device
+        .DBGMCU
+        .apb2_fz()
+        .modify(|_, w| w.dbg_tim1_stop().set_bit());
+    device
+        .DBGMCU
+        .apb1_fz()
+        .modify(|_, w| w.dbg_iwdg_stop().set_bit());
+
     // FTimerUs enables TIM2 and computes the 1 MHz prescaler from the frozen clocks;
     // the free-running 32-bit count is then set up like on every board.
     let tim2 = FTimerUs::new(device.TIM2, &mut rcc).release();
     let prescaler = tim2.psc().read().psc().bits();
+
+    let gpioa = device.GPIOA.split(&mut rcc);
+
+    // Bridge pins low (outputs off) before the PWM exists.
+    let dir = gpioa.pa9.into_push_pull_output_in_state(PinState::Low);
+    let en = gpioa.pa10.into_push_pull_output_in_state(PinState::Low);
+    let pwm = MotorPwm::new(device.TIM1, gpioa.pa8, &mut rcc);
+    let bridge = match Bridge::new(pwm, dir, en) {
+        Ok(bridge) => bridge,
+        Err(error) => defmt::panic!(
+            "H-bridge: could not put the bridge in its safe state: {}",
+            error
+        ),
+    };
+
+    let link = LinkEncoder::new(device.TIM3, gpioa.pa6, gpioa.pa7, &mut rcc);
+
+    Adc1::new(
+        device.ADC1,
+        &device.ADC_COMMON,
+        gpioa.pa0.into_analog(),
+        gpioa.pa1.into_analog(),
+        &mut rcc,
+    )
+    .install();
+
+    let world = World::start(device.IWDG);
+
     Parts {
         clock: IndependentClock::start(tim2, prescaler),
+        io: Io {
+            link,
+            pot: GearPot { _adc: () },
+            current: CurrentAdc { _adc: () },
+            bridge,
+        },
+        world,
+        servo: default_servo(),
     }
+}
+
+/// The clutch length the real board starts at, mm, until the host sets another.
+pub const START_CLUTCH_MM: i32 = 3;
+
+/// The paper preset at [`START_CLUTCH_MM`], default supervision, disabled: the motor stays
+/// off until the host enables it.
+fn default_servo() -> Servo {
+    let config = ControlConfig::paper(Length::from_int(START_CLUTCH_MM));
+    match Servo::new(&Design::paper(), &config, &SupervisorConfig::DEFAULT) {
+        Ok(servo) => servo,
+        Err(e) => defmt::panic!("servo configuration rejected: {}", e),
+    }
+}
+
+/// The H-bridge PWM: TIM1 CH1 on PA8, 20 kHz, duty `0..=9000`.
+///
+/// A small driver of its own rather than the HAL's `PwmChannel` (which implements
+/// `SetDutyCycle` too), for one reason: with CCR1 preloaded, the HAL's duty 0 reaches the
+/// output only at the next update event, up to 50 µs later, so an H-bridge flipping its
+/// direction pin right after "PWM off" would drive the new direction with the old duty for
+/// up to a period. Here duty 0 also generates the update event (UG): the counter restarts
+/// and the output is low before `set_duty_cycle` returns.
+pub struct MotorPwm {
+    tim: pac::TIM1,
+    _pin: PA8<Alternate<1>>,
+}
+
+impl MotorPwm {
+    /// Configures TIM1 (RM0390, advanced-control timers: PWM mode) with the output low,
+    /// then hands PA8 to it.
+    fn new(tim: pac::TIM1, pin: PA8, rcc: &mut pac::RCC) -> Self {
+        pac::TIM1::enable(rcc);
+        pac::TIM1::reset(rcc);
+        tim.psc().write(|w| w.psc().set(0));
+        tim.arr().write(|w| w.arr().set(PWM_PERIOD_TICKS - 1));
+        tim.ccr1().write(|w| w.ccr().set(0));
+        // CH1 output, PWM mode 1 (high while CNT < CCR1), CCR1 preloaded.
+        tim.ccmr1_output()
+            .write(|w| w.oc1m().pwm_mode1().oc1pe().set_bit());
+        // CH1 active high; no complementary output.
+        tim.ccer().write(|w| w.cc1e().set_bit());
+        // Main output on. OSSI: whenever MOE is off (debug halt), drive the idle level (OIS1
+        // = 0, low) rather than leave the pin floating. No break input, no dead time.
+        tim.bdtr().write(|w| w.ossi().set_bit().moe().set_bit());
+        // Edge-aligned, up-counting, ARR preloaded; load PSC, ARR and CCR1, then count.
+        tim.cr1().write(|w| w.arpe().set_bit());
+        tim.egr().write(|w| w.ug().set_bit());
+        tim.cr1().modify(|_, w| w.cen().set_bit());
+        Self {
+            tim,
+            _pin: pin.into_alternate::<1>(),
+        }
+    }
+}
+
+impl embedded_hal::pwm::ErrorType for MotorPwm {
+    type Error = Infallible;
+}
+
+impl embedded_hal::pwm::SetDutyCycle for MotorPwm {
+    fn max_duty_cycle(&self) -> u16 {
+        PWM_PERIOD_TICKS
+    }
+
+    /// Sets CCR1 (duties above 9000 are clamped to 9000, always on). A non-zero duty
+    /// starts with the next period; 0 applies at once.
+    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> {
+        let duty = duty.min(PWM_PERIOD_TICKS);
+        self.tim.ccr1().write(|w| w.ccr().set(duty));
+        if duty == 0 {
+            // Update event: CCR1 = 0 is loaded now and the output goes low.
+            self.tim.egr().write(|w| w.ug().set_bit());
+        }
+        Ok(())
+    }
+}
+
+/// The link's angle: TIM3 quadrature decoder on PA6/PA7 (an AS5047-style ABI output).
+pub struct LinkEncoder {
+    tim: pac::TIM3,
+}
+
+impl LinkEncoder {
+    fn new(tim: pac::TIM3, a: PA6, b: PA7, rcc: &mut pac::RCC) -> Self {
+        // The HAL sets up encoder mode 3 (both edges of TI1 and TI2), ARR = 0xFFFF, and
+        // the pins as AF2; the pins stay in that mode when their handles are dropped.
+        let (tim, _pins) = Qei::new(tim, (a, b), rcc).release();
+        // Add an input filter (8 samples at f_CK_INT = 90 MHz) and start from 0.
+        tim.cr1().modify(|_, w| w.cen().clear_bit());
+        tim.ccmr1_input()
+            .modify(|_, w| w.ic1f().fck_int_n8().ic2f().fck_int_n8());
+        tim.cnt().write(|w| w.cnt().set(0));
+        tim.cr1().modify(|_, w| w.cen().set_bit());
+        Self { tim }
+    }
+}
+
+impl AngleSensor for LinkEncoder {
+    const FULL_SCALE: u16 = LINK_COUNTS_PER_TURN;
+
+    /// The counter modulo 4096. Never fails: a quadrature decoder has no error to report.
+    fn read_counts(&mut self) -> Result<u16, SensorError> {
+        Ok(self.tim.cnt().read().cnt().bits() % LINK_COUNTS_PER_TURN)
+    }
+}
+
+/// The gear-side potentiometer: ADC1 channel 1 (PA1), 12-bit conversion >> 2.
+pub struct GearPot {
+    _adc: (),
+}
+
+impl AngleSensor for GearPot {
+    const FULL_SCALE: u16 = 1024;
+
+    fn read_counts(&mut self) -> Result<u16, SensorError> {
+        Adc1::convert_shared(POT_CHANNEL).map(|raw| raw >> 2)
+    }
+}
+
+/// The motor current sense: ADC1 channel 0 (PA0), 12-bit raw.
+pub struct CurrentAdc {
+    _adc: (),
+}
+
+impl CurrentSensor for CurrentAdc {
+    fn read_raw(&mut self) -> Result<u16, SensorError> {
+        Adc1::convert_shared(CURRENT_CHANNEL)
+    }
+}
+
+/// ADC1, shared by [`GearPot`] and [`CurrentAdc`] (installed once by `init`).
+static ADC1: Mutex<RefCell<Option<Adc1>>> = Mutex::new(RefCell::new(None));
+
+/// ADC1 with its two analog pins.
+struct Adc1 {
+    adc: pac::ADC1,
+    _current: PA0<Analog>,
+    _pot: PA1<Analog>,
+}
+
+impl Adc1 {
+    /// Powers ADC1 up for single software-started conversions (RM0390, ADC: single
+    /// conversion mode): 12-bit, right-aligned, one regular conversion, no scan, no DMA, no
+    /// interrupt.
+    fn new(
+        adc: pac::ADC1,
+        common: &pac::ADC_COMMON,
+        current: PA0<Analog>,
+        pot: PA1<Analog>,
+        rcc: &mut pac::RCC,
+    ) -> Self {
+        pac::ADC1::enable(rcc);
+        pac::ADC1::reset(rcc);
+        common.ccr().modify(|_, w| w.adcpre().div4());
+        adc.cr1().write(|w| w.res().twelve_bit());
+        adc.smpr2().write(|w| {
+            w.smp(CURRENT_CHANNEL).cycles56();
+            w.smp(POT_CHANNEL).cycles56()
+        });
+        adc.sqr1().write(|w| w.l().set(0));
+        adc.cr2().write(|w| w.adon().set_bit());
+        cortex_m::asm::delay(ADC_STABILISATION_CORE_CYCLES);
+        Self {
+            adc,
+            _current: current,
+            _pot: pot,
+        }
+    }
+
+    fn install(self) {
+        interrupt::free(|cs| {
+            ADC1.borrow(cs).replace(Some(self));
+        });
+    }
+
+    /// One conversion of `channel` on the shared ADC1, in a critical section.
+    fn convert_shared(channel: u8) -> Result<u16, SensorError> {
+        interrupt::free(|cs| {
+            let Ok(mut adc) = ADC1.borrow(cs).try_borrow_mut() else {
+                return Err(SensorError::Bus);
+            };
+            adc.as_mut()
+                .map_or(Err(SensorError::Device), |adc| adc.convert(channel))
+        })
+    }
+
+    /// Starts one conversion of `channel` and polls for its end at most
+    /// `ADC_POLL_LIMIT` times.
+    fn convert(&mut self, channel: u8) -> Result<u16, SensorError> {
+        let adc = &self.adc;
+        // SAFETY: SQ1 takes a channel number 0..=18; `channel` is 0 or 1.
+        adc.sqr3().write(|w| unsafe { w.sq1().bits(channel) });
+        // Clear stale flags (rc_w0), then start; SWSTART is ignored while ADON = 0, which
+        // ends in the timeout below rather than a hang.
+        adc.sr()
+            .write(|w| w.eoc().clear().strt().clear().ovr().clear());
+        adc.cr2().modify(|_, w| w.swstart().set_bit());
+        for _ in 0..ADC_POLL_LIMIT {
+            if adc.sr().read().eoc().bit_is_set() {
+                // Reading DR clears EOC.
+                return Ok(adc.dr().read().data().bits() & 0x0FFF);
+            }
+        }
+        // Abort whatever the ADC is doing (ADON = 0 stops a conversion and powers it down),
+        // so that a late end of conversion cannot be taken for the next channel's; then
+        // power it up again and let it stabilise. Only on this failure path.
+        adc.cr2().modify(|_, w| w.adon().clear_bit());
+        adc.cr2().modify(|_, w| w.adon().set_bit());
+        cortex_m::asm::delay(ADC_STABILISATION_CORE_CYCLES);
+        Err(SensorError::Timeout)
+    }
+}
+
+/// Board-wide services of the control tick: the independent watchdog.
+pub struct World {
+    iwdg: pac::IWDG,
+}
+
+impl World {
+    /// Starts the IWDG with an 80 ms timeout (RM0390, IWDG; STM32Cube's sequence: start,
+    /// which also starts the LSI, then configure, wait for the update, reload).
+    fn start(iwdg: pac::IWDG) -> Self {
+        iwdg.kr().write(|w| w.key().start());
+        iwdg.kr().write(|w| w.key().unlock());
+        iwdg.pr().write(|w| w.pr().divide_by32());
+        iwdg.rlr().write(|w| w.rl().set(WATCHDOG_TIMEOUT_MS - 1));
+        // PVU/RVU clear once the LSI domain has taken the values (≤ 5 LSI periods).
+        let mut waited_ms = 0;
+        while {
+            let sr = iwdg.sr().read();
+            sr.pvu().bit_is_set() || sr.rvu().bit_is_set()
+        } {
+            if waited_ms == WATCHDOG_UPDATE_WAIT_MS {
+                defmt::panic!(
+                    "watchdog: the IWDG did not take its prescaler and reload within {=u32} ms (LSI not running?)",
+                    WATCHDOG_UPDATE_WAIT_MS
+                );
+            }
+            cortex_m::asm::delay(SYSCLK_HZ / 1_000);
+            waited_ms += 1;
+        }
+        // The counter started at 0xFFF; from this reload on it counts down from 79.
+        iwdg.kr().write(|w| w.key().feed());
+        Self { iwdg }
+    }
+
+    /// Called at the start of every control tick: feeds the watchdog.
+    pub fn begin_tick(&mut self, _io: &mut Io, _servo: &mut Servo) -> TickPlan {
+        self.iwdg.kr().write(|w| w.key().feed());
+        TickPlan { overrun: false }
+    }
+
+    /// End of a tick: nothing to record on the real board.
+    pub fn end_tick(&mut self, _servo: &Servo, _out: &TickOutput, _late: Option<Fault>, _io: &Io) {}
+}
+
+/// What the start of a tick asks of the control loop (never an injected overrun here).
+pub struct TickPlan {
+    /// Busy-wait past the deadline in this tick (fault injection; emulated boards only).
+    pub overrun: bool,
+}
+
+/// The real world has no scenario events to log.
+pub fn drain_world(
+    _control: &mut crate::control::ControlLoop,
+    _push: &mut impl FnMut(crate::report::LogItem),
+) {
 }
 
 /// The real board runs until it is reset.
 pub fn run_config() -> RunConfig {
-    RunConfig {
-        seconds: None,
-        idle: IdleMode::Wfi,
-        panic_at_tick: None,
-    }
+    RunConfig::new(IdleMode::Wfi)
 }
 
 /// There is nowhere to exit to: report the verdict and keep running.

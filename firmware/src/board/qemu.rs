@@ -44,11 +44,16 @@ pub const SYSCLK_HZ: u32 = 120_000_000;
 /// Input clock of QEMU's STM32F2xx/F4xx TIM2–5 model, Hz.
 const QEMU_TIMER_INPUT_HZ: u32 = 1_000_000_000;
 
-/// Brings up what the emulated board has.
-pub fn init(device: pac::Peripherals) -> Parts {
+/// Brings up what the emulated board has, and the simulated actuator running `run`'s
+/// scenario.
+pub fn init(device: pac::Peripherals, run: &RunConfig) -> Parts {
     let prescaler = (QEMU_TIMER_INPUT_HZ / 1_000_000 - 1) as u16;
+    let (world, servo) = super::World::new(run.scenario);
     Parts {
         clock: IndependentClock::start(device.TIM2, prescaler),
+        io: super::Io::new(),
+        world,
+        servo,
     }
 }
 
@@ -57,11 +62,7 @@ pub fn init(device: pac::Peripherals) -> Parts {
 pub fn run_config() -> RunConfig {
     let Ok(args) = semihosting::experimental::env::args::<256>() else {
         defmt::warn!("no semihosting command line; running the default time");
-        return RunConfig {
-            seconds: Some(RunConfig::DEFAULT_SECONDS),
-            idle: IdleMode::Spin,
-            panic_at_tick: None,
-        };
+        return RunConfig::new(IdleMode::Spin);
     };
     let words = (&args).skip(1).map_while(Result::ok);
     match RunConfig::parse(words, IdleMode::Spin) {

@@ -1,0 +1,269 @@
+//! The log task's side: what the control tick hands over ([`LogItem`]) and how it is
+//! written to defmt ([`Reporter`]), including the scenario results and the final verdict
+//! of an emulated run.
+
+use crate::run::{RunConfig, SelfCheck};
+use crate::timing::{SecondReport, CONTROL_HZ};
+use model::supervisor::Fault;
+
+/// Something the control tick wants logged.
+#[allow(clippy::large_enum_variant)] // a few items in a static queue
+pub enum LogItem {
+    /// A fault was latched (the motor is already off).
+    Fault(Fault),
+    /// One second of ticks on the independent clock.
+    Second(SecondReport),
+    /// A scenario event (emulated boards).
+    #[cfg(feature = "qemu")]
+    Scenario(plant::scenario::ScenarioEvent),
+    /// The scenario ended: the control loop's cost accounting.
+    #[cfg(feature = "qemu")]
+    Costs(crate::control::StepStats),
+}
+
+/// Writes log items; on the emulated boards, collects the results and ends the run.
+pub struct Reporter {
+    run: RunConfig,
+    self_check: SelfCheck,
+    #[cfg(feature = "qemu")]
+    results: [Option<(i32, plant::harness::Metrics)>; 5],
+    #[cfg(feature = "qemu")]
+    summary: Option<plant::scenario::Summary>,
+}
+
+impl Reporter {
+    /// A reporter for `run`.
+    pub fn new(run: RunConfig) -> Self {
+        Self {
+            run,
+            self_check: SelfCheck::new(),
+            #[cfg(feature = "qemu")]
+            results: [None; 5],
+            #[cfg(feature = "qemu")]
+            summary: None,
+        }
+    }
+
+    /// Logs one item.
+    pub fn log(&mut self, item: LogItem) {
+        match item {
+            LogItem::Fault(f) => defmt::error!(
+                "FAULT {=str} (code {=u8}): value {=i32} at tick {=u32}; motor disabled",
+                f.code.name(),
+                f.code as u8,
+                f.value,
+                f.tick
+            ),
+            LogItem::Second(report) => {
+                self.self_check.record(&report);
+                #[cfg(feature = "nucleo-f446re")]
+                defmt::info!(
+                    "second {=u32}: {=u32} ticks, {=u32} overruns, tick busy max {=u32} sysclk counts, {=u32} log items dropped",
+                    report.second,
+                    report.ticks,
+                    report.overruns,
+                    report.busy_max_counts,
+                    report.dropped_reports,
+                );
+                #[cfg(feature = "qemu")]
+                defmt::debug!(
+                    "second {=u32}: {=u32} ticks, {=u32} overruns, tick busy max {=u32} sysclk counts, {=u32} log items dropped",
+                    report.second,
+                    report.ticks,
+                    report.overruns,
+                    report.busy_max_counts,
+                    report.dropped_reports,
+                );
+                if self.run.is_last_second(report.second) {
+                    defmt::warn!("--seconds {=u32} reached: stopping", report.second);
+                    let passed = self.timing_verdict(0);
+                    crate::board::exit(passed);
+                }
+            }
+            #[cfg(feature = "qemu")]
+            LogItem::Scenario(ev) => self.scenario_event(ev),
+            #[cfg(feature = "qemu")]
+            LogItem::Costs(stats) => self.finish(stats),
+        }
+    }
+
+    /// Logs the timing self-check: every complete second had [`CONTROL_HZ`] ticks and
+    /// there were exactly `expected_overruns` overruns.
+    fn timing_verdict(&mut self, expected_overruns: u32) -> bool {
+        let v = self.self_check.verdict();
+        let passed = v.seconds > 0
+            && v.min_ticks == CONTROL_HZ
+            && v.max_ticks == CONTROL_HZ
+            && v.overruns == expected_overruns
+            && v.dropped_reports == 0;
+        if passed {
+            defmt::info!(
+                "timing: {=u32} s, {=u32} ticks in every second, {=u32} overruns (expected {=u32}), 0 log items dropped: passed",
+                v.seconds,
+                CONTROL_HZ,
+                v.overruns,
+                expected_overruns
+            );
+        } else {
+            defmt::error!(
+                "timing: {=u32} s, ticks/s min {=u32} max {=u32}, {=u32} overruns (expected {=u32}), {=u32} log items dropped: FAILED",
+                v.seconds,
+                v.min_ticks,
+                v.max_ticks,
+                v.overruns,
+                expected_overruns,
+                v.dropped_reports
+            );
+        }
+        passed
+    }
+}
+
+#[cfg(feature = "qemu")]
+mod scenario_log {
+    use super::Reporter;
+    use crate::control::StepStats;
+    use plant::harness::Metrics;
+    use plant::scenario::{Injection, ScenarioEvent, ScenarioId};
+
+    /// `v` rounded to `decimals` places, as f32: defmt prints the shortest decimal that
+    /// round-trips, so 0.8122263 logs as `0.812`.
+    fn r(v: f64, decimals: i32) -> f32 {
+        let scale = libm::pow(10.0, f64::from(decimals));
+        (libm::round(v * scale) / scale) as f32
+    }
+
+    fn opt(v: Option<f64>) -> f64 {
+        v.unwrap_or(f64::NAN)
+    }
+
+    fn log_metrics(mm: i32, m: &Metrics) {
+        defmt::info!(
+            "L = {=i32} mm: overshoot {=f32} %, rise {=f32} s, settling {=f32} s, steady-state error {=f32} counts, peak stress {=f32} MPa ({=f32} of allowable), rms error {=f32} rad, torque-limited {=bool}, hash {=u64:#018x}",
+            mm,
+            r(m.overshoot_pct, 2),
+            r(opt(m.rise_time_s), 3),
+            r(opt(m.settling_time_s), 3),
+            r(m.steady_state_error_counts, 2),
+            r(m.peak_stress_pa * 1e-6, 1),
+            r(m.peak_stress_ratio, 3),
+            r(m.rms_error_rad, 4),
+            m.torque_limited,
+            m.output_hash
+        );
+    }
+
+    impl Reporter {
+        pub(super) fn scenario_event(&mut self, ev: ScenarioEvent) {
+            match ev {
+                ScenarioEvent::SegmentStart {
+                    index,
+                    clutch_mm,
+                    stiffness_nm_per_rad,
+                    torque_capacity_nm,
+                    tick,
+                } => defmt::info!(
+                    "setting {=u8}: L = {=i32} mm, k = {=f32} N·m/rad, torque capacity {=f32} N·m (from tick {=u32})",
+                    index + 1,
+                    clutch_mm,
+                    r(stiffness_nm_per_rad, 1),
+                    r(torque_capacity_nm, 3),
+                    tick
+                ),
+                ScenarioEvent::Injected { injection, tick } => match injection {
+                    Injection::ExternalTorque(nm) => defmt::warn!(
+                        "inject at tick {=u32}: external torque {=f32} N·m on the link",
+                        tick,
+                        nm
+                    ),
+                    other => defmt::warn!("inject at tick {=u32}: {}", tick, other),
+                },
+                ScenarioEvent::Condition { code, tick } => defmt::info!(
+                    "condition for {=str} met at tick {=u32} (plant's true state)",
+                    code.name(),
+                    tick
+                ),
+                ScenarioEvent::SegmentDone {
+                    index,
+                    clutch_mm,
+                    metrics,
+                } => {
+                    log_metrics(clutch_mm, &metrics);
+                    if let Some(slot) = self.results.get_mut(usize::from(index)) {
+                        *slot = Some((clutch_mm, metrics));
+                    }
+                }
+                ScenarioEvent::Finished(s) => self.summary = Some(s),
+            }
+        }
+
+        pub(super) fn finish(&mut self, stats: StepStats) -> ! {
+            let Some(s) = self.summary else {
+                defmt::error!("scenario ended without a summary");
+                crate::board::exit(false)
+            };
+            if s.id == ScenarioId::StepSweep {
+                defmt::info!("step sweep (0.5 rad raw step, 0.3 N·m load, J_link = 1e-3 kg·m²):");
+                defmt::info!("| L mm | overshoot % | settling s | ss error counts | peak stress / allowable | torque-limited |");
+                for (mm, m) in self.results.iter().flatten() {
+                    defmt::info!(
+                        "| {=i32} | {=f32} | {=f32} | {=f32} | {=f32} | {=bool} |",
+                        mm,
+                        r(m.overshoot_pct, 2),
+                        r(opt(m.settling_time_s), 3),
+                        r(m.steady_state_error_counts, 2),
+                        r(m.peak_stress_ratio, 3),
+                        m.torque_limited
+                    );
+                }
+            }
+            let n = u64::from(stats.ticks.max(1));
+            let step_mean = (stats.step_sum / n) as u32;
+            let world_mean = (stats.world_sum / n) as u32;
+            defmt::info!(
+                "cost per tick over {=u32} ticks, sysclk counts: control step mean {=u32} max {=u32}; plant mean {=u32} max {=u32}",
+                stats.ticks,
+                step_mean,
+                stats.step_max,
+                world_mean,
+                stats.world_max
+            );
+            if let Some(shift) = self.run.icount_shift {
+                // One instruction takes 2^shift ns; SysTick counts at SYSCLK.
+                let per = |counts: u64| {
+                    counts * 1_000_000_000 / (u64::from(crate::board::SYSCLK_HZ) << shift)
+                };
+                defmt::info!(
+                    "control step: mean {=u64} instructions, max {=u64} instructions (icount shift {=u8}; plant mean {=u64})",
+                    per(u64::from(step_mean)),
+                    per(u64::from(stats.step_max)),
+                    shift,
+                    per(u64::from(world_mean))
+                );
+            }
+            let fault = s.first_fault.map_or("none", |(c, _)| c.name());
+            let fault_tick = s.first_fault.map_or(0, |(_, t)| t);
+            let passed_scenario = s.passed();
+            defmt::info!(
+                "scenario {=str}: {=u32} ticks, hash {=u64:#018x}, first fault {=str} at tick {=u32}, injected at tick {=u32}, condition at tick {=u32}, ticks driven after the fault {=u32}, bridge enabled after the fault {=u32}",
+                s.id.name(),
+                s.ticks,
+                s.hash,
+                fault,
+                fault_tick,
+                s.inject_tick.unwrap_or(0),
+                s.condition_tick.unwrap_or(0),
+                s.driven_after_fault,
+                s.lines_on_after_fault
+            );
+            let expected_overruns = u32::from(s.id == ScenarioId::Overrun);
+            let timing = self.timing_verdict(expected_overruns);
+            if passed_scenario && timing {
+                defmt::info!("scenario {=str} passed", s.id.name());
+            } else {
+                defmt::error!("scenario {=str} FAILED", s.id.name());
+            }
+            crate::board::exit(passed_scenario && timing)
+        }
+    }
+}
