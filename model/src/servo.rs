@@ -238,32 +238,17 @@ impl Servo {
         Ok(())
     }
 
-    /// Restarts on a new configuration: disable, configure, forget the sensor history
-    /// (the mechanism may have been moved or re-mounted meanwhile), enable. Latched faults
-    /// stay latched.
-    ///
-    /// # Errors
-    /// A rejected configuration (nothing changes) or [`ServoError::Faulted`] (configured
-    /// but not enabled).
-    pub fn restart(&mut self, config: &Config) -> Result<(), ServoError> {
-        self.disable();
-        self.configure(config)?;
-        self.supervisor.forget_history();
-        self.enable()
-    }
-
-    /// [`Servo::restart`] with a configuration prepared ahead of time: disable, install
-    /// its controller and thresholds (a copy, no maths), forget the sensor history, enable.
-    /// Latched faults stay latched (the servo is then left disabled).
+    /// Restarts on a configuration prepared ahead of time: disable, install its controller
+    /// and thresholds (a copy, no maths), forget the sensor history (the mechanism may have
+    /// been moved or re-mounted meanwhile), enable. Latched faults stay latched (the servo
+    /// is then left faulted).
     ///
     /// # Errors
     /// [`ServoError::Faulted`].
     pub fn restart_prepared(&mut self, prepared: &Prepared) -> Result<(), ServoError> {
         self.disable();
-        let latched = self.supervisor;
         self.controller = prepared.controller.clone();
         self.supervisor.install_thresholds(&prepared.supervisor);
-        debug_assert_eq!(self.supervisor.latched(), latched.latched());
         self.supervisor.forget_history();
         self.enable()
     }

@@ -23,7 +23,9 @@
 //! Every threshold is converted to the per-tick formats when the supervisor is built
 //! ([`Supervisor::new`]), never per tick; the per-tick work is compares and one multiply.
 
-use crate::control::{Output, Schedule};
+use crate::control::config::{ADC_COUNTS_PER_A, ADC_MID, ENCODER_COUNTS, POT_COUNTS};
+use crate::control::controller::POT_COUNT_Q32;
+use crate::control::{encoder_delta, Output, Schedule};
 use crate::units::{Angle, Torque};
 use fixed::types::I32F32;
 
@@ -31,15 +33,6 @@ use fixed::types::I32F32;
 const Q32_ONE: i64 = 1 << 32;
 /// One encoder count, rad, as I32F32 bits: 2π/4096·2³².
 const COUNT_Q32: i64 = 6_588_397;
-/// One pot count, rad, as I32F32 bits: (300° in rad)/1024·2³².
-const POT_COUNT_Q32: i64 = 21_961_324;
-/// Encoder counts per revolution.
-const ENCODER_COUNTS: i32 = 4096;
-/// Pot counts (full scale).
-const POT_COUNTS: i32 = 1024;
-/// Current ADC counts at 0 A and per ampere.
-const ADC_MID: i32 = 2048;
-const ADC_COUNTS_PER_A: i64 = 1024;
 
 /// What went wrong. The discriminant is the code logged and sent to the host.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -330,7 +323,7 @@ impl Supervisor {
             .saturating_add(COUNT_Q32 / 2);
         Ok(Thresholds {
             // |adc − mid| > trip·1024, rounded down: trips at or above the trip current.
-            trip_adc: ((trip * ADC_COUNTS_PER_A) >> 32) as i32,
+            trip_adc: ((trip * i64::from(ADC_COUNTS_PER_A)) >> 32) as i32,
             adc_min: cfg.adc_min,
             adc_max: cfg.adc_max,
             max_jump_counts: max_jump_counts.clamp(1, i64::from(ENCODER_COUNTS / 2)) as i32,
@@ -463,12 +456,7 @@ impl Supervisor {
         // Encoder jump (wrapped difference).
         let mut link_moved = true;
         if let Some(prev) = self.prev_encoder {
-            let d = (i32::from(r.link_encoder) - i32::from(prev)) & (ENCODER_COUNTS - 1);
-            let d = if d >= ENCODER_COUNTS / 2 {
-                d - ENCODER_COUNTS
-            } else {
-                d
-            };
+            let d = encoder_delta(r.link_encoder, prev);
             if d.abs() > th.max_jump_counts {
                 note(self, FaultCode::SensorJump, d);
             }

@@ -331,8 +331,7 @@ impl Recorder {
         m.peak_spring_torque_nm = m
             .peak_spring_torque_nm
             .max(f64::from(st.spring_torque_nm).abs());
-        let d =
-            ((i32::from(readings.link_encoder) - i32::from(self.last_enc) + 2048) & 4095) - 2048;
+        let d = model::control::encoder_delta(readings.link_encoder, self.last_enc);
         self.last_enc = readings.link_encoder;
         self.unwrapped = self.unwrapped.saturating_add(d);
         if after {

@@ -31,7 +31,7 @@ use model::supervisor::{Fault, FaultCode, Supervisor, SupervisorConfig};
 use model::{Angle, Design, Length};
 
 use crate::harness::{self, fnv1a64, Metrics, Recorder, Scenario, FNV_OFFSET};
-use crate::sensors::{SensorFault, SensorReadings, ENCODER_COUNTS};
+use crate::sensors::{SensorFault, SensorReadings};
 use crate::sim::{BridgeCommand, Plant};
 
 const Q32: f64 = 4_294_967_296.0;
@@ -665,7 +665,7 @@ impl ScenarioRun {
                     Injection::EncoderFrozen => {
                         self.plant.faults_mut().link_encoder = SensorFault::Frozen;
                         let raw = self.readings.link_encoder;
-                        let v = (i32::from(raw) + 2048) % i32::from(ENCODER_COUNTS) - 2048;
+                        let v = model::control::encoder_delta(raw, 0);
                         self.frozen_angle = Some((f64::from(v) + 0.5) * harness::COUNT_RAD);
                     }
                     Injection::AdcStuckAt(v) => {

@@ -91,6 +91,18 @@ pub const ADC_MID: i32 = 2048;
 /// Current ADC counts per ampere.
 pub const ADC_COUNTS_PER_A: i32 = 1024;
 
+/// Signed change of a link-encoder reading from `prev` to `now`, counts, the shorter way
+/// round the 4096-count turn: in [−2048, 2048).
+#[must_use]
+pub const fn encoder_delta(now: u16, prev: u16) -> i32 {
+    let d = (now as i32 - prev as i32) & (ENCODER_COUNTS - 1);
+    if d >= ENCODER_COUNTS / 2 {
+        d - ENCODER_COUNTS
+    } else {
+        d
+    }
+}
+
 /// Which clutch setting to run at.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

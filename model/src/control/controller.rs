@@ -4,7 +4,8 @@
 use fixed::types::I32F32;
 
 use super::config::{
-    Config, ControlError, Schedule, ADC_COUNTS_PER_A, ADC_MID, ENCODER_COUNTS, POT_COUNTS,
+    encoder_delta, Config, ControlError, Schedule, ADC_COUNTS_PER_A, ADC_MID, ENCODER_COUNTS,
+    POT_COUNTS,
 };
 use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Q16_ONE};
 use super::trajectory::{Command, Reference, Trajectory};
@@ -16,7 +17,7 @@ const HALF_COUNT_Q32: i64 = 3_294_199;
 /// One encoder count per tick as a velocity, 2π/4096 rad · 1000 /s, Q16 (1.534 rad/s).
 const COUNT_PER_TICK_Q16: i32 = 100_531;
 /// One pot count, 300°/1024 = 5π/(3·1024) rad, in I32F32 bits (rounded).
-const POT_COUNT_Q32: i64 = 21_961_324;
+pub(crate) const POT_COUNT_Q32: i64 = 21_961_324;
 /// ADC counts → A in Q16: 1024 counts/A, so ×64.
 const ADC_TO_Q16_SHIFT: u32 = 6;
 
@@ -227,12 +228,7 @@ impl Controller {
 
         // --- link angle: unwrap, centre of the count, filtered velocity ---
         let delta = if self.started {
-            let d = (i32::from(m.link_encoder) - i32::from(self.enc_prev)) & (ENCODER_COUNTS - 1);
-            if d >= ENCODER_COUNTS / 2 {
-                d - ENCODER_COUNTS
-            } else {
-                d
-            }
+            encoder_delta(m.link_encoder, self.enc_prev)
         } else {
             self.n_link = self.centred_counts(m.link_encoder);
             0

@@ -121,8 +121,8 @@ pub mod sine;
 pub mod trajectory;
 
 pub use config::{
-    ClutchSetting, Config, ControlError, GainOverride, Limits, MotorParams, PidGains, Schedule,
-    SensorCal,
+    encoder_delta, ClutchSetting, Config, ControlError, GainOverride, Limits, MotorParams,
+    PidGains, Schedule, SensorCal,
 };
 pub use controller::{Controller, Flags, Measurements, Output};
 pub use gain::Gain;
