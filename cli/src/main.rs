@@ -2,11 +2,14 @@
 //!
 //! Every number it prints or plots is computed by the `model` crate (fixed point, the same
 //! code as the firmware); this crate parses arguments, converts units for display and
-//! renders tables, JSON, CSV and figures.
+//! renders tables, JSON, CSV and figures. The board commands (`status`, `enable`, `move`,
+//! `record`, `script`, …) talk to a board through the `client` crate: a real board on a
+//! serial port (`--port`), a board or relay on TCP (`--tcp`), or an emulated board started
+//! for the invocation (`--qemu`).
 //!
 //! Exit codes: 0 success; 2 bad input (one line on stderr naming the argument, nothing on
 //! stdout; clap's own usage errors exit 2 too); 1 a failure while working (e.g. a file that
-//! cannot be written).
+//! cannot be written, a board that refuses a command or does not answer).
 #![forbid(unsafe_code)]
 
 use std::io::Write;
@@ -14,10 +17,12 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod board;
 mod design;
 mod error;
 mod figures;
 mod format;
+mod plot;
 mod simulate;
 mod units;
 
@@ -29,6 +34,8 @@ use error::CliResult;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    #[command(flatten)]
+    conn: board::ConnectArgs,
 }
 
 /// The subcommands. A new one is a variant here and an arm in [`run`] that returns the
@@ -43,15 +50,36 @@ enum Command {
     Figures(figures::FiguresArgs),
     /// Run the position controller against the simulated actuator on the host.
     Simulate(simulate::SimulateArgs),
+    /// Plot a recorded run from its CSV (angles, current and torque against time).
+    Plot(plot::PlotArgs),
+    #[command(flatten)]
+    Board(board::BoardCommand),
+    /// Run several board commands in one session (the way to use one --qemu board).
+    Script(board::ScriptArgs),
+    /// Keep an emulated board running and relay a TCP port to it for `--tcp` clients.
+    ServeQemu(board::serve::ServeArgs),
 }
 
 fn run(cli: Cli) -> CliResult<()> {
+    let offline = |conn: &board::ConnectArgs| match conn.first_given() {
+        Some(arg) => Err(error::CliError::usage(
+            arg,
+            "connection options only apply to board commands",
+        )),
+        None => Ok(()),
+    };
     match cli.command {
-        Command::Design(args) => design::run(&args).map(|s| print(&s)),
-        Command::Figures(args) => figures::run(&args),
-        Command::Simulate(args) => {
-            simulate::run(&args).map_err(|reason| error::CliError::usage("simulate", reason))
+        Command::Design(args) => {
+            offline(&cli.conn).and_then(|()| design::run(&args).map(|s| print(&s)))
         }
+        Command::Figures(args) => offline(&cli.conn).and_then(|()| figures::run(&args)),
+        Command::Simulate(args) => offline(&cli.conn).and_then(|()| {
+            simulate::run(&args).map_err(|reason| error::CliError::usage("simulate", reason))
+        }),
+        Command::Plot(args) => offline(&cli.conn).and_then(|()| plot::run(&args)),
+        Command::Board(cmd) => board::run(&cmd, &cli.conn),
+        Command::Script(args) => board::script(&args, &cli.conn),
+        Command::ServeQemu(args) => board::serve::run(&args, &cli.conn),
     }
 }
 

@@ -26,6 +26,14 @@ pub enum Kind {
     Torque,
     /// A joint stiffness, model unit N·m/rad.
     Stiffness,
+    /// An angle, unit rad (degrees are not a power of ten of it: see `board::args`).
+    Angle,
+    /// A duration, unit s.
+    Time,
+    /// A frequency, unit Hz.
+    Frequency,
+    /// A current, unit A.
+    Current,
 }
 
 /// Torque unit spellings and their power of ten relative to N·m.
@@ -65,6 +73,16 @@ impl Kind {
                 .iter()
                 .map(|&(u, e)| (format!("{u}/rad"), e))
                 .collect(),
+            Kind::Angle => own(&[
+                ("rad", 0),
+                ("mrad", -3),
+                ("urad", -6),
+                ("µrad", -6),
+                ("μrad", -6),
+            ]),
+            Kind::Time => own(&[("s", 0), ("ms", -3), ("us", -6), ("µs", -6)]),
+            Kind::Frequency => own(&[("Hz", 0), ("mHz", -3), ("kHz", 3)]),
+            Kind::Current => own(&[("A", 0), ("mA", -3)]),
         }
     }
 
@@ -75,6 +93,10 @@ impl Kind {
             Kind::Pressure => "MPa",
             Kind::Torque => "N·m",
             Kind::Stiffness => "N·m/rad",
+            Kind::Angle => "rad",
+            Kind::Time => "s",
+            Kind::Frequency => "Hz",
+            Kind::Current => "A",
         }
     }
 
@@ -85,6 +107,10 @@ impl Kind {
             Kind::Pressure => "Pa, kPa, MPa, GPa",
             Kind::Torque => "Nm (or N*m, N·m), mNm, Nmm, kNm",
             Kind::Stiffness => "Nm/rad (or N*m/rad, N·m/rad), mNm/rad, kNm/rad",
+            Kind::Angle => "rad, mrad, urad, deg",
+            Kind::Time => "s, ms, us",
+            Kind::Frequency => "Hz, mHz, kHz",
+            Kind::Current => "A, mA",
         }
     }
 }
@@ -206,6 +232,22 @@ impl Decimal {
             exp: self.exp.saturating_add(e).clamp(-EXP_LIMIT, EXP_LIMIT),
             ..self
         }
+    }
+
+    /// `round(self · 10^e)` (half away from zero) as an integer, `None` if it does not
+    /// fit an i64: `0.5` with `e = 6` is 500 000.
+    pub fn round_scaled(self, e: i32) -> Option<i64> {
+        let d = self.scaled(e);
+        let m: u128 = if d.exp >= 0 {
+            d.digits.checked_mul(10u128.checked_pow(d.exp as u32)?)?
+        } else {
+            match 10u128.checked_pow(d.exp.unsigned_abs()) {
+                Some(p) => d.digits / p + u128::from(d.digits % p >= p.div_ceil(2)),
+                None => 0, // below 10^-38: rounds to zero
+            }
+        };
+        let m = i64::try_from(m).ok()?;
+        Some(if d.negative { -m } else { m })
     }
 
     /// `true` if zero.
@@ -532,6 +574,28 @@ mod tests {
         assert_eq!(d("1e3").cmp_value(d("999")), Greater);
         assert!(Decimal::parse("abc").is_none());
         assert!(Decimal::parse("1e").is_none());
+    }
+
+    #[test]
+    fn board_quantities_to_wire_integers() {
+        let w = |s: &str, k: Kind, e: i32| parse(s, k).unwrap().value.round_scaled(e);
+        assert_eq!(w("0.5rad", Kind::Angle, 6), Some(500_000));
+        assert_eq!(w("-500mrad", Kind::Angle, 6), Some(-500_000));
+        assert_eq!(w("12urad", Kind::Angle, 6), Some(12));
+        assert_eq!(w("300ms", Kind::Time, 3), Some(300));
+        assert_eq!(w("1.5s", Kind::Time, 3), Some(1_500));
+        assert_eq!(w("1Hz", Kind::Frequency, 3), Some(1_000));
+        assert_eq!(w("250mHz", Kind::Frequency, 3), Some(250));
+        assert_eq!(w("1.2A", Kind::Current, 3), Some(1_200));
+        assert_eq!(w("3mm", Kind::Length, 3), Some(3_000));
+        assert_eq!(w("250Nm/rad", Kind::Stiffness, 3), Some(250_000));
+        // Rounding half away from zero, tiny and huge values.
+        assert_eq!(w("0.0000005rad", Kind::Angle, 6), Some(1));
+        assert_eq!(w("-0.0000005rad", Kind::Angle, 6), Some(-1));
+        assert_eq!(w("0.0000004rad", Kind::Angle, 6), Some(0));
+        assert_eq!(w("1e-90rad", Kind::Angle, 6), Some(0));
+        assert_eq!(w("1e30rad", Kind::Angle, 6), None);
+        assert!(parse("1deg", Kind::Angle).is_err());
     }
 
     #[test]

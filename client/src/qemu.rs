@@ -1,20 +1,24 @@
 //! The emulated boards: building the firmware and running it under QEMU with its command
-//! UART (USART1, QEMU's first `-serial`) connected to this process over TCP.
+//! UART connected to this process over TCP.
 //!
-//! QEMU runs as
+//! The firmware serves the protocol on USART2, QEMU's *second* `-serial` device, so QEMU
+//! runs as
 //!
 //! ```text
 //! qemu-system-arm -machine netduinoplus2 -display none -monitor none
-//!     -serial tcp:127.0.0.1:PORT
+//!     -serial null -serial tcp:127.0.0.1:PORT
 //!     -semihosting-config enable=on,target=native,arg=vsa-firmware,arg=--serve[,arg=…]
-//!     -icount shift=3,sleep=on -kernel ELF
+//!     -icount shift=3,sleep=on,align=on -kernel ELF
 //! ```
 //!
-//! QEMU connects to PORT as a TCP client: [`QemuBoard::spawn`] binds a listener on
-//! 127.0.0.1 first, starts QEMU, and accepts its connection. QEMU's stdout carries the
-//! firmware's defmt log (binary defmt frames): a thread drains it into a [`LogSink`].
-//! The UART drops what arrives before the firmware enables it, so [`QemuBoard::start`]
-//! pings every 50 ms until the firmware answers. Dropping the [`QemuBoard`] kills QEMU.
+//! (`sleep=on,align=on`: virtual time is the instruction count, 8 ns each, and QEMU sleeps
+//! whenever the guest runs ahead of real time, so the board keeps time with the host's
+//! heartbeats.) QEMU connects to PORT as a TCP client: [`QemuBoard::spawn`] binds a
+//! listener on 127.0.0.1 first, starts QEMU, and accepts its connection. QEMU's stdout
+//! carries the firmware's defmt log (binary defmt frames): a thread drains it into a
+//! [`LogSink`]. The UART drops what arrives before the firmware enables it, so
+//! [`QemuBoard::start`] pings every 50 ms until the firmware answers. Dropping the
+//! [`QemuBoard`] kills QEMU.
 
 use std::fmt;
 use std::io::{Read, Write};
@@ -215,8 +219,13 @@ pub struct QemuOptions {
     pub firmware_args: Vec<String>,
     /// The QEMU binary.
     pub qemu: PathBuf,
-    /// `-icount shift=N,sleep=on`.
+    /// `-icount shift=N,sleep=on[,align=on]`.
     pub icount_shift: u32,
+    /// `align=on` in `-icount` (QEMU sleeps when the guest runs ahead of real time).
+    pub align: bool,
+    /// Which `-serial` device (0-based) is the firmware's command UART: 1 (USART2, the
+    /// second device; the ones before it are `null`).
+    pub serial_index: usize,
     /// How long QEMU may take to connect.
     pub connect_timeout: Duration,
     /// How long the firmware may take to answer a ping ([`QemuBoard::start`]).
@@ -233,6 +242,8 @@ impl QemuOptions {
             firmware_args: Vec::new(),
             qemu: PathBuf::from("qemu-system-arm"),
             icount_shift: ICOUNT_SHIFT,
+            align: true,
+            serial_index: 1,
             connect_timeout: CONNECT_TIMEOUT,
             ready_timeout: READY_TIMEOUT,
         }
@@ -331,15 +342,23 @@ impl QemuBoard {
             .local_addr()
             .map_err(|e| err("listener address", e))?
             .port();
-        let mut child = Command::new(&opts.qemu)
-            .args(["-machine", opts.board.machine()])
-            .args(["-display", "none", "-monitor", "none"])
+        let mut cmd = Command::new(&opts.qemu);
+        cmd.args(["-machine", opts.board.machine()])
+            .args(["-display", "none", "-monitor", "none"]);
+        for _ in 0..opts.serial_index {
+            cmd.args(["-serial", "null"]);
+        }
+        let mut child = cmd
             .arg("-serial")
             .arg(format!("tcp:127.0.0.1:{port}"))
             .arg("-semihosting-config")
             .arg(&semihosting)
             .arg("-icount")
-            .arg(format!("shift={},sleep=on", opts.icount_shift))
+            .arg(format!(
+                "shift={},sleep=on{}",
+                opts.icount_shift,
+                if opts.align { ",align=on" } else { "" }
+            ))
             .arg("-kernel")
             .arg(&opts.elf)
             .stdin(Stdio::null())

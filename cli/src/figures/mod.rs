@@ -11,7 +11,7 @@
 
 mod closed_loop;
 mod energy;
-mod plot;
+pub(crate) mod plot;
 mod text;
 
 use std::fmt::Write as _;

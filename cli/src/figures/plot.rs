@@ -92,24 +92,45 @@ pub struct Figure {
 }
 
 impl Figure {
-    /// Writes `<stem>.svg` and `<stem>.png`.
+    /// Writes `<stem>.svg` and `<stem>.png`, panels side by side.
     pub fn write(&self, stem: &Path) -> Result<(), String> {
-        let svg = stem.with_extension("svg");
-        let png = stem.with_extension("png");
-        self.draw(SVGBackend::new(&svg, self.size).into_drawing_area())
-            .map_err(|e| format!("{}: {e}", svg.display()))?;
-        let backend = GoodText::new(BitMapBackend::new(&png, self.size), font()?);
-        self.draw(backend.into_drawing_area())
-            .map_err(|e| format!("{}: {e}", png.display()))
+        self.write_file(&stem.with_extension("svg"), false)?;
+        self.write_file(&stem.with_extension("png"), false)
     }
 
-    fn draw<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>) -> Result<(), String> {
+    /// Writes one image, SVG or PNG by `path`'s extension, the panels side by side or
+    /// (`stacked`) one above the other.
+    pub fn write_file(&self, path: &Path, stacked: bool) -> Result<(), String> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("svg") => self.draw(
+                SVGBackend::new(path, self.size).into_drawing_area(),
+                stacked,
+            ),
+            Some("png") => {
+                let backend = GoodText::new(BitMapBackend::new(path, self.size), font()?);
+                self.draw(backend.into_drawing_area(), stacked)
+            }
+            _ => Err("unknown image format (use .png or .svg)".to_string()),
+        }
+        .map_err(|e| format!("{}: {e}", path.display()))
+    }
+
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: DrawingArea<DB, Shift>,
+        stacked: bool,
+    ) -> Result<(), String> {
         let err = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
         root.fill(&WHITE).map_err(err)?;
         let body = root
             .titled(&self.title, (FAMILY, 24).into_font().color(&BLACK))
             .map_err(err)?;
-        let areas = body.split_evenly((1, self.panels.len().max(1)));
+        let n = self.panels.len().max(1);
+        let areas = body.split_evenly(if stacked { (n, 1) } else { (1, n) });
         for (area, p) in areas.iter().zip(&self.panels) {
             let (x0, x1) = bounds(p.series.iter().flat_map(|s| s.points.iter().map(|q| q.0)));
             let m = (x1 - x0) * p.x_margin;

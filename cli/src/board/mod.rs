@@ -1,0 +1,985 @@
+//! Board commands: talk to a real board (`--port`), a board or relay on TCP (`--tcp`), or
+//! an emulated board started for this invocation (`--qemu`), through the `client` crate.
+//!
+//! Every argument is parsed and range-checked before the connection is made (bad input
+//! exits with 2 and sends nothing); a refusal, a timeout or a lost connection exits with 1.
+
+mod args;
+pub mod serve;
+
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::path::PathBuf;
+use std::sync::{Mutex, Once, PoisonError};
+use std::time::{Duration, Instant};
+
+use clap::{Args, Parser, Subcommand};
+use client::protocol::{KD_MAX, KI_MAX, KP_MAX};
+use client::qemu::{self, Board, LogSink, QemuBoard};
+use client::{
+    describe_fault, fault_name, state_name, Client, FaultCode, Gains, LimitFlags, Limits,
+    Recording, Status,
+};
+
+use crate::error::{CliError, CliResult};
+use crate::format::trim;
+use args::show;
+
+/// How to reach the board (global options, for board commands only).
+#[derive(Args, Debug, Default, Clone)]
+pub struct ConnectArgs {
+    /// Serial port of a real board (ST-LINK virtual COM port), e.g. /dev/ttyACM0
+    #[arg(
+        long,
+        global = true,
+        value_name = "PATH",
+        help_heading = "Board connection"
+    )]
+    pub port: Option<String>,
+    /// Baud rate of --port [default: 921600]
+    #[arg(
+        long,
+        global = true,
+        value_name = "BAUD",
+        help_heading = "Board connection"
+    )]
+    pub baud: Option<u32>,
+    /// A board or `vsa serve-qemu` relay on TCP, e.g. 127.0.0.1:4000
+    #[arg(
+        long,
+        global = true,
+        value_name = "HOST:PORT",
+        help_heading = "Board connection"
+    )]
+    pub tcp: Option<String>,
+    /// Start an emulated board (QEMU) for this invocation only
+    #[arg(long, global = true, help_heading = "Board connection")]
+    pub qemu: bool,
+    /// Emulated board for --qemu and serve-qemu [default: qemu-m4]
+    #[arg(
+        long,
+        global = true,
+        value_name = "BOARD",
+        value_parser = ["qemu-m4", "qemu-m3"],
+        help_heading = "Board connection"
+    )]
+    pub board: Option<String>,
+    /// Firmware ELF for --qemu and serve-qemu [default: build it with cargo]
+    #[arg(
+        long,
+        global = true,
+        value_name = "PATH",
+        help_heading = "Board connection"
+    )]
+    pub elf: Option<PathBuf>,
+    /// Write the emulated firmware's raw defmt log bytes to FILE
+    #[arg(
+        long,
+        global = true,
+        value_name = "FILE",
+        help_heading = "Board connection"
+    )]
+    pub qemu_log: Option<PathBuf>,
+    /// Reply timeout, e.g. 2s [default: 1s]
+    #[arg(
+        long,
+        global = true,
+        value_name = "DURATION",
+        help_heading = "Board connection"
+    )]
+    pub timeout: Option<String>,
+}
+
+impl ConnectArgs {
+    /// The first connection option given, if any (to reject them where they mean nothing).
+    pub fn first_given(&self) -> Option<&'static str> {
+        [
+            (self.port.is_some(), "--port"),
+            (self.baud.is_some(), "--baud"),
+            (self.tcp.is_some(), "--tcp"),
+            (self.qemu, "--qemu"),
+            (self.board.is_some(), "--board"),
+            (self.elf.is_some(), "--elf"),
+            (self.qemu_log.is_some(), "--qemu-log"),
+            (self.timeout.is_some(), "--timeout"),
+        ]
+        .into_iter()
+        .find_map(|(given, name)| given.then_some(name))
+    }
+
+    /// Which board the options select.
+    fn target(&self) -> CliResult<Target> {
+        let chosen: Vec<&str> = [
+            (self.port.is_some(), "--port"),
+            (self.tcp.is_some(), "--tcp"),
+            (self.qemu, "--qemu"),
+        ]
+        .into_iter()
+        .filter_map(|(g, n)| g.then_some(n))
+        .collect();
+        match chosen.as_slice() {
+            [] => {
+                return Err(CliError {
+                    arg: None,
+                    reason: "no board connection: give --port PATH, --tcp HOST:PORT or --qemu"
+                        .to_string(),
+                    code: 2,
+                })
+            }
+            [_] => {}
+            [a, b, ..] => {
+                return Err(CliError::usage(a, format!("cannot be combined with {b}")));
+            }
+        }
+        if self.baud.is_some() && self.port.is_none() {
+            return Err(CliError::usage("--baud", "only applies to --port"));
+        }
+        if !self.qemu {
+            for (given, name) in [
+                (self.board.is_some(), "--board"),
+                (self.elf.is_some(), "--elf"),
+                (self.qemu_log.is_some(), "--qemu-log"),
+            ] {
+                if given {
+                    return Err(CliError::usage(name, "only applies to --qemu"));
+                }
+            }
+        }
+        Ok(if let Some(p) = &self.port {
+            Target::Serial {
+                path: p.clone(),
+                baud: self.baud.unwrap_or(client::DEFAULT_BAUD),
+            }
+        } else if let Some(t) = &self.tcp {
+            Target::Tcp(t.clone())
+        } else {
+            Target::Qemu(self.qemu_target()?)
+        })
+    }
+
+    /// The emulated board options.
+    pub fn qemu_target(&self) -> CliResult<QemuTarget> {
+        let board = match &self.board {
+            Some(b) => b.parse().map_err(|e| CliError::usage("--board", e))?,
+            None => Board::QemuM4,
+        };
+        Ok(QemuTarget {
+            board,
+            elf: self.elf.clone(),
+            log: self.qemu_log.clone(),
+        })
+    }
+
+    /// The reply timeout.
+    fn reply_timeout(&self) -> CliResult<Duration> {
+        match &self.timeout {
+            Some(t) => args::duration("--timeout", t, 3600),
+            None => Ok(client::DEFAULT_TIMEOUT),
+        }
+    }
+}
+
+/// An emulated board to start.
+#[derive(Debug, Clone)]
+pub struct QemuTarget {
+    board: Board,
+    elf: Option<PathBuf>,
+    log: Option<PathBuf>,
+}
+
+impl QemuTarget {
+    /// The ELF to run: `--elf`, or the firmware built with cargo now.
+    fn elf(&self) -> CliResult<PathBuf> {
+        if let Some(e) = &self.elf {
+            if !e.is_file() {
+                return Err(CliError::usage(
+                    "--elf",
+                    format!("{} does not exist", e.display()),
+                ));
+            }
+            return Ok(e.clone());
+        }
+        let root = qemu::workspace_root().ok_or_else(|| {
+            CliError::usage(
+                "--qemu",
+                "cannot find the vsa workspace to build the firmware in: pass --elf PATH \
+                 or set VSA_WORKSPACE",
+            )
+        })?;
+        let _ = writeln!(
+            std::io::stderr(),
+            "building the {} firmware in {} …",
+            self.board,
+            root.display()
+        );
+        qemu::build_firmware(&root, self.board).map_err(|e| CliError::runtime(e.to_string()))
+    }
+
+    /// Where the defmt log goes.
+    fn sink(&self) -> CliResult<LogSink> {
+        match &self.log {
+            None => Ok(LogSink::Discard),
+            Some(p) => std::fs::File::create(p)
+                .map(|f| LogSink::Writer(Box::new(std::io::BufWriter::new(f))))
+                .map_err(|e| CliError::usage("--qemu-log", format!("{}: {e}", p.display()))),
+        }
+    }
+
+    /// Builds (if needed) and starts the board; returns it and a client it has answered.
+    pub fn start(&self) -> CliResult<(Adopted, Client)> {
+        let elf = self.elf()?;
+        let sink = self.sink()?;
+        QemuBoard::start(self.board, &elf, &[], sink)
+            .map(|(board, client)| (adopt(board), client))
+            .map_err(|e| CliError::runtime(e.to_string()))
+    }
+}
+
+/// The emulated boards this process started. They are killed when their [`Adopted`]
+/// handle drops, and also on Ctrl-C, SIGTERM or SIGHUP (QEMU would otherwise outlive
+/// `vsa`, spinning).
+static BOARDS: Mutex<Vec<QemuBoard>> = Mutex::new(Vec::new());
+
+/// An emulated board kept in [`BOARDS`]; dropping it kills QEMU.
+pub struct Adopted {
+    pid: u32,
+}
+
+/// Takes `board` into [`BOARDS`] (installing the signal handler once).
+pub fn adopt(board: QemuBoard) -> Adopted {
+    static HANDLER: Once = Once::new();
+    HANDLER.call_once(|| {
+        // Without the handler a signal still ends `vsa`; only the cleanup is lost.
+        let _ = ctrlc::set_handler(|| {
+            BOARDS
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .clear();
+            std::process::exit(130);
+        });
+    });
+    let pid = board.pid();
+    BOARDS
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .push(board);
+    Adopted { pid }
+}
+
+impl Adopted {
+    /// QEMU's process id.
+    pub fn pid(&self) -> u32 {
+        self.pid
+    }
+
+    /// [`QemuBoard::exit_report`].
+    pub fn exit_report(&self) -> String {
+        let mut boards = BOARDS.lock().unwrap_or_else(PoisonError::into_inner);
+        boards
+            .iter_mut()
+            .find(|b| b.pid() == self.pid)
+            .map_or_else(String::new, QemuBoard::exit_report)
+    }
+}
+
+impl Drop for Adopted {
+    fn drop(&mut self) {
+        let board = {
+            let mut boards = BOARDS.lock().unwrap_or_else(PoisonError::into_inner);
+            boards
+                .iter()
+                .position(|b| b.pid() == self.pid)
+                .map(|i| boards.swap_remove(i))
+        };
+        drop(board); // kills QEMU, outside the lock
+    }
+}
+
+enum Target {
+    Serial { path: String, baud: u32 },
+    Tcp(String),
+    Qemu(QemuTarget),
+}
+
+/// A connected board for one invocation (the emulated board, if any, dies with it).
+pub struct Session {
+    client: Client,
+    qemu: Option<Adopted>,
+}
+
+impl Session {
+    /// Connects as `conn` says.
+    pub fn open(conn: &ConnectArgs) -> CliResult<Session> {
+        let target = conn.target()?;
+        let timeout = conn.reply_timeout()?;
+        let (client, qemu) = match target {
+            Target::Serial { path, baud } => (
+                Client::open_serial(&path, baud).map_err(|e| CliError::runtime(e.to_string()))?,
+                None,
+            ),
+            Target::Tcp(addr) => (
+                Client::connect_tcp(&addr).map_err(|e| CliError::runtime(e.to_string()))?,
+                None,
+            ),
+            Target::Qemu(q) => {
+                let (board, client) = q.start()?;
+                (client, Some(board))
+            }
+        };
+        Ok(Session {
+            client: client.with_timeout(timeout),
+            qemu,
+        })
+    }
+
+    /// A client error as a CLI error (exit 1), with QEMU's exit status if it died.
+    fn fail(&mut self, e: &client::Error) -> CliError {
+        let mut msg = e.to_string();
+        if let Some(q) = &self.qemu {
+            msg.push_str(&q.exit_report());
+        }
+        CliError::runtime(msg)
+    }
+}
+
+/// The board commands (also the lines of `vsa script`).
+#[derive(Subcommand, Debug, Clone)]
+pub enum BoardCommand {
+    /// Check that the board answers, and how fast
+    Ping,
+    /// State, faults, configuration and counters of the board
+    Status,
+    /// Motor on, holding the current position (refused while a fault is latched)
+    Enable,
+    /// Motor off
+    Disable,
+    /// Clear the latched faults (the motor stays off until `enable`)
+    Clear,
+    /// Tell the board where the clutch sits, e.g. `clutch 3mm` (1–8 mm)
+    Clutch {
+        /// Active beam length, e.g. 3mm
+        #[arg(value_name = "LENGTH", allow_hyphen_values = true)]
+        length: String,
+    },
+    /// Configure for a joint stiffness, e.g. `stiffness 250Nm/rad`; prints the clutch length to set
+    Stiffness {
+        /// Joint stiffness, e.g. 250Nm/rad
+        #[arg(value_name = "STIFFNESS", allow_hyphen_values = true)]
+        stiffness: String,
+    },
+    /// Minimum-jerk move of the link to an absolute angle, e.g. `move 0.5rad --duration 300ms`
+    Move {
+        /// Target link angle (rad, mrad, urad or deg), |·| ≤ 2π rad
+        #[arg(value_name = "ANGLE", allow_hyphen_values = true)]
+        target: String,
+        /// Duration of the move, 1 ms – 60 s
+        #[arg(long, value_name = "DURATION", default_value = "500ms")]
+        duration: String,
+    },
+    /// Reference step to an absolute link angle, e.g. `step 0.5rad`
+    Step {
+        /// Target link angle (rad, mrad, urad or deg), |·| ≤ 2π rad
+        #[arg(value_name = "ANGLE", allow_hyphen_values = true)]
+        target: String,
+    },
+    /// Sine about the current link angle, e.g. `sine 0.2rad --frequency 1Hz`
+    Sine {
+        /// Amplitude, 0–1 rad
+        #[arg(value_name = "AMPLITUDE", allow_hyphen_values = true)]
+        amplitude: String,
+        /// Frequency, 0.01–20 Hz
+        #[arg(long, value_name = "FREQUENCY")]
+        frequency: String,
+    },
+    /// Stop any motion and hold the current reference
+    Hold,
+    /// Explicit PID gains (`--kp 800 --ki 2000 --kd 20`), or `--auto` for the scheduled ones
+    Gains(GainsArgs),
+    /// Live limits and the position window; options not given take their defaults
+    Limits(LimitsArgs),
+    /// Wait, e.g. `wait 500ms` (in a script: heartbeats go on, telemetry is dropped)
+    Wait {
+        /// How long (a bare number is in seconds), up to 1 h
+        #[arg(value_name = "DURATION")]
+        duration: String,
+    },
+    /// Record telemetry: samples, gaps and drops; optionally to a CSV in SI units
+    Record(RecordArgs),
+}
+
+/// Arguments of `gains`.
+#[derive(Args, Debug, Clone)]
+pub struct GainsArgs {
+    /// Proportional gain, ‰ duty per rad (0–10⁶)
+    #[arg(long, value_name = "KP")]
+    pub kp: Option<String>,
+    /// Integral gain, ‰ duty per rad·s (0–10⁷)
+    #[arg(long, value_name = "KI")]
+    pub ki: Option<String>,
+    /// Derivative gain, ‰ duty per rad/s (0–10⁴)
+    #[arg(long, value_name = "KD")]
+    pub kd: Option<String>,
+    /// Back to the stiffness-scheduled gains
+    #[arg(long, conflicts_with_all = ["kp", "ki", "kd"])]
+    pub auto: bool,
+}
+
+/// Arguments of `limits`.
+#[derive(Args, Debug, Clone)]
+pub struct LimitsArgs {
+    /// Fraction of the beams' torque capacity the coupling may use, e.g. 0.85 or 85% [default: 0.85]
+    #[arg(long, value_name = "FRACTION")]
+    pub torque_margin: Option<String>,
+    /// Motor current limit, e.g. 1.2A [default: 1.5A]
+    #[arg(long, value_name = "CURRENT")]
+    pub current: Option<String>,
+    /// Motor torque limit at the output, e.g. 1.5Nm [default: 1.5Nm]
+    #[arg(long, value_name = "TORQUE")]
+    pub motor_torque: Option<String>,
+    /// Largest |PWM duty|, e.g. 0.8 or 80% [default: 1]
+    #[arg(long, value_name = "FRACTION")]
+    pub duty: Option<String>,
+    /// Lower end of the position window, e.g. -2.5rad [default: -2.5rad]
+    #[arg(long, value_name = "ANGLE", allow_hyphen_values = true)]
+    pub position_min: Option<String>,
+    /// Upper end of the position window, e.g. 2.5rad [default: 2.5rad]
+    #[arg(long, value_name = "ANGLE", allow_hyphen_values = true)]
+    pub position_max: Option<String>,
+}
+
+/// Arguments of `record`.
+#[derive(Args, Debug, Clone)]
+pub struct RecordArgs {
+    /// Span of board time to record (a bare number is in seconds), up to 1 h
+    #[arg(long, value_name = "DURATION", default_value = "2")]
+    pub seconds: String,
+    /// Samples per second, 10–500 Hz
+    #[arg(long, value_name = "HZ", default_value = "500")]
+    pub rate: String,
+    /// Write the samples here (s, rad, A, N·m, duty fraction)
+    #[arg(long, value_name = "FILE")]
+    pub csv: Option<PathBuf>,
+}
+
+/// A board command with its arguments converted to wire units and checked.
+#[derive(Debug, Clone)]
+enum Action {
+    Ping,
+    Status,
+    Enable,
+    Disable,
+    Clear,
+    Clutch(u32),
+    Stiffness(u32),
+    Move {
+        target: i32,
+        duration_ms: u32,
+    },
+    Step(i32),
+    Sine {
+        amplitude: u32,
+        frequency_mhz: u32,
+    },
+    Hold,
+    Gains(Option<Gains>),
+    Limits(Limits),
+    Wait(Duration),
+    Record {
+        span: Duration,
+        rate: u16,
+        csv: Option<PathBuf>,
+    },
+}
+
+/// Checks a command's arguments (errors name the command and the argument).
+fn plan(cmd: &BoardCommand) -> CliResult<Action> {
+    Ok(match cmd {
+        BoardCommand::Ping => Action::Ping,
+        BoardCommand::Status => Action::Status,
+        BoardCommand::Enable => Action::Enable,
+        BoardCommand::Disable => Action::Disable,
+        BoardCommand::Clear => Action::Clear,
+        BoardCommand::Clutch { length } => Action::Clutch(args::length_um("clutch", length)?),
+        BoardCommand::Stiffness { stiffness } => {
+            Action::Stiffness(args::stiffness_mnm_per_rad("stiffness", stiffness)?)
+        }
+        BoardCommand::Move { target, duration } => Action::Move {
+            target: args::angle_urad("move", target)?,
+            duration_ms: args::move_duration_ms("move --duration", duration)?,
+        },
+        BoardCommand::Step { target } => Action::Step(args::angle_urad("step", target)?),
+        BoardCommand::Sine {
+            amplitude,
+            frequency,
+        } => Action::Sine {
+            amplitude: args::amplitude_urad("sine", amplitude)?,
+            frequency_mhz: args::frequency_mhz("sine --frequency", frequency)?,
+        },
+        BoardCommand::Hold => Action::Hold,
+        BoardCommand::Gains(g) => Action::Gains(plan_gains(g)?),
+        BoardCommand::Limits(l) => Action::Limits(plan_limits(l)?),
+        BoardCommand::Wait { duration } => Action::Wait(args::duration("wait", duration, 3600)?),
+        BoardCommand::Record(r) => Action::Record {
+            span: args::duration("record --seconds", &r.seconds, 3600)?,
+            rate: args::rate_hz("record --rate", &r.rate, false)?,
+            csv: r.csv.clone(),
+        },
+    })
+}
+
+fn plan_gains(g: &GainsArgs) -> CliResult<Option<Gains>> {
+    if g.auto {
+        return Ok(None);
+    }
+    match (&g.kp, &g.ki, &g.kd) {
+        (Some(kp), Some(ki), Some(kd)) => Ok(Some(Gains {
+            kp: args::gain("gains --kp", kp, KP_MAX)?,
+            ki: args::gain("gains --ki", ki, KI_MAX)?,
+            kd: args::gain("gains --kd", kd, KD_MAX)?,
+        })),
+        _ => Err(CliError::usage(
+            "gains",
+            "give all of --kp, --ki and --kd, or --auto",
+        )),
+    }
+}
+
+fn plan_limits(l: &LimitsArgs) -> CliResult<Limits> {
+    let d = Limits::DEFAULT;
+    let lim = Limits {
+        torque_margin_permille: match &l.torque_margin {
+            Some(s) => args::permille("limits --torque-margin", s)?,
+            None => d.torque_margin_permille,
+        },
+        current_ma: match &l.current {
+            Some(s) => args::current_ma("limits --current", s)?,
+            None => d.current_ma,
+        },
+        motor_torque_unm: match &l.motor_torque {
+            Some(s) => args::torque_unm("limits --motor-torque", s)?,
+            None => d.motor_torque_unm,
+        },
+        duty_permille: match &l.duty {
+            Some(s) => args::permille("limits --duty", s)?,
+            None => d.duty_permille,
+        },
+        position_min_urad: match &l.position_min {
+            Some(s) => args::angle_urad("limits --position-min", s)?,
+            None => d.position_min_urad,
+        },
+        position_max_urad: match &l.position_max {
+            Some(s) => args::angle_urad("limits --position-max", s)?,
+            None => d.position_max_urad,
+        },
+    };
+    if lim.position_min_urad >= lim.position_max_urad {
+        return Err(CliError::usage(
+            "limits",
+            format!(
+                "the position window [{}, {}] rad is empty",
+                show(lim.position_min_urad.into(), 6),
+                show(lim.position_max_urad.into(), 6)
+            ),
+        ));
+    }
+    Ok(lim)
+}
+
+/// Writes `s` to stdout now (a closed pipe is not an error).
+fn out(s: &str) {
+    let mut o = std::io::stdout().lock();
+    let _ = o.write_all(s.as_bytes()).and_then(|()| o.flush());
+}
+
+/// Runs one board command for this invocation.
+pub fn run(cmd: &BoardCommand, conn: &ConnectArgs) -> CliResult<()> {
+    let action = plan(cmd)?;
+    let mut session = Session::open(conn)?;
+    exec(&action, &mut session)
+}
+
+/// Carries out one action and prints its result.
+fn exec(action: &Action, s: &mut Session) -> CliResult<()> {
+    let c = &mut s.client;
+    let r: Result<String, client::Error> = match action {
+        Action::Ping => {
+            let t = Instant::now();
+            c.ping().map(|()| {
+                format!(
+                    "{} answered in {:.1} ms\n",
+                    c.describe(),
+                    t.elapsed().as_secs_f64() * 1e3
+                )
+            })
+        }
+        Action::Status => c.status().map(|st| status_text(&st)),
+        Action::Enable => c.enable().map(|()| "enabled\n".to_string()),
+        Action::Disable => c.disable().map(|()| "disabled\n".to_string()),
+        Action::Clear => c.clear_fault().map(|()| "faults cleared\n".to_string()),
+        Action::Clutch(um) => c.set_clutch_length(*um).and_then(|()| {
+            let st = c.status()?;
+            Ok(format!(
+                "clutch L = {} mm configured: k = {} N·m/rad\n",
+                show((*um).into(), 3),
+                show(st.stiffness_mnm_per_rad.into(), 3)
+            ))
+        }),
+        Action::Stiffness(k) => c.set_stiffness(*k).map(|um| {
+            format!(
+                "configured for k = {} N·m/rad: set the clutch to L = {} mm\n",
+                show((*k).into(), 3),
+                show(um.into(), 3)
+            )
+        }),
+        Action::Move {
+            target,
+            duration_ms,
+        } => c.move_to(*target, *duration_ms).map(|()| {
+            format!(
+                "moving to {} rad in {} ms\n",
+                show((*target).into(), 6),
+                duration_ms
+            )
+        }),
+        Action::Step(t) => c
+            .step_to(*t)
+            .map(|()| format!("step to {} rad\n", show((*t).into(), 6))),
+        Action::Sine {
+            amplitude,
+            frequency_mhz,
+        } => c.sine(*amplitude, *frequency_mhz).map(|()| {
+            format!(
+                "sine of {} rad at {} Hz\n",
+                show((*amplitude).into(), 6),
+                show((*frequency_mhz).into(), 3)
+            )
+        }),
+        Action::Hold => c.hold().map(|()| "holding\n".to_string()),
+        Action::Gains(Some(g)) => c.set_gains(*g).map(|()| {
+            format!(
+                "gains set: kp {} ‰/rad, ki {} ‰/(rad·s), kd {} ‰·s/rad\n",
+                show(g.kp as i64, 3),
+                show(g.ki as i64, 3),
+                show(g.kd as i64, 3)
+            )
+        }),
+        Action::Gains(None) => c
+            .auto_gains()
+            .map(|()| "automatic (stiffness-scheduled) gains\n".to_string()),
+        Action::Limits(l) => c.set_limits(l).map(|()| {
+            format!(
+                "limits set: torque margin {}, current {} A, motor torque {} N·m, duty {}, \
+                 position [{}, {}] rad\n",
+                show(l.torque_margin_permille.into(), 3),
+                show(l.current_ma.into(), 3),
+                show(l.motor_torque_unm.into(), 6),
+                show(l.duty_permille.into(), 3),
+                show(l.position_min_urad.into(), 6),
+                show(l.position_max_urad.into(), 6)
+            )
+        }),
+        Action::Wait(d) => c.wait(*d).map(|()| {
+            c.clear_telemetry();
+            String::new()
+        }),
+        Action::Record { span, rate, csv } => return record(s, *span, *rate, csv.as_ref()),
+    };
+    match r {
+        Ok(text) => {
+            out(&text);
+            Ok(())
+        }
+        Err(e) => Err(s.fail(&e)),
+    }
+}
+
+fn record(s: &mut Session, span: Duration, rate: u16, csv: Option<&PathBuf>) -> CliResult<()> {
+    // Fail on an unwritable CSV before recording.
+    let file = match csv {
+        Some(p) => Some(
+            std::fs::File::create(p)
+                .map_err(|e| CliError::usage("record --csv", format!("{}: {e}", p.display())))?,
+        ),
+        None => None,
+    };
+    let bar = (span >= Duration::from_secs(1)).then(|| {
+        let b = indicatif::ProgressBar::new(u64::try_from(span.as_millis()).unwrap_or(u64::MAX));
+        if let Ok(style) =
+            indicatif::ProgressStyle::with_template("recording [{bar:40}] {pos}/{len} ms {msg}")
+        {
+            b.set_style(style.progress_chars("=> "));
+        }
+        b
+    });
+    let result = s.client.record(span, rate, |p| {
+        if let Some(b) = &bar {
+            b.set_position(p.ticks_done.into());
+            b.set_message(format!("{} samples", p.samples));
+        }
+    });
+    if let Some(b) = &bar {
+        b.finish_and_clear();
+    }
+    let rec = result.map_err(|e| s.fail(&e))?;
+    let mut text = record_summary(&rec);
+    if let (Some(f), Some(p)) = (file, csv) {
+        client::csv::write_csv(std::io::BufWriter::new(f), &rec.samples)
+            .map_err(|e| CliError::runtime(format!("{}: {e}", p.display())))?;
+        let _ = writeln!(text, "wrote {}", p.display());
+    }
+    out(&text);
+    Ok(())
+}
+
+/// The summary of a recording.
+fn record_summary(r: &Recording) -> String {
+    let mut s = String::new();
+    let (first, last) = (
+        r.samples.first().map_or(0, |x| x.tick),
+        r.samples.last().map_or(0, |x| x.tick),
+    );
+    let _ = writeln!(
+        s,
+        "recorded {} of {} samples at {} Hz over {} s (ticks {first}–{last})",
+        r.samples.len(),
+        r.expected_samples(),
+        r.rate_hz,
+        trim(f64::from(r.ticks) / 1e3),
+    );
+    let _ = writeln!(
+        s,
+        "missing {} in {} gaps; board dropped {} ({} since boot); {} bad frames",
+        r.missing_samples,
+        r.gaps.len(),
+        r.dropped,
+        r.dropped_total,
+        r.bad_frames
+    );
+    for g in r.gaps.iter().take(5) {
+        let _ = writeln!(
+            s,
+            "  gap: {} missing between ticks {} and {}",
+            g.missing, g.after_tick, g.before_tick
+        );
+    }
+    if r.gaps.len() > 5 {
+        let _ = writeln!(s, "  … and {} more gaps", r.gaps.len() - 5);
+    }
+    s
+}
+
+/// The faults of a set by name, `none` if empty.
+fn fault_list(f: client::FaultSet) -> String {
+    if f.is_empty() {
+        return "none".to_string();
+    }
+    let mut names: Vec<String> = FaultCode::ALL
+        .into_iter()
+        .filter(|c| f.contains(*c))
+        .map(|c| format!("{} ({})", fault_name(c), c.code()))
+        .collect();
+    let known = FaultCode::ALL.iter().fold(0u16, |m, c| m | c.bit());
+    for bit in 0..16 {
+        if f.0 & !known & (1 << bit) != 0 {
+            names.push(format!("unknown bit {bit}"));
+        }
+    }
+    names.join(", ")
+}
+
+fn limit_list(l: LimitFlags) -> String {
+    let names: Vec<&str> = [
+        (LimitFlags::TORQUE, "torque"),
+        (LimitFlags::CURRENT, "current"),
+        (LimitFlags::DUTY, "duty"),
+    ]
+    .into_iter()
+    .filter(|(m, _)| l.any(*m))
+    .map(|(_, n)| n)
+    .collect();
+    if names.is_empty() {
+        "none".to_string()
+    } else {
+        names.join(", ")
+    }
+}
+
+/// The status as aligned `name  value` lines.
+fn status_text(st: &Status) -> String {
+    let rows = [
+        ("state", state_name(st.state).to_string()),
+        ("faults", fault_list(st.faults)),
+        (
+            "first fault",
+            st.first_fault
+                .as_ref()
+                .map_or_else(|| "–".to_string(), describe_fault),
+        ),
+        ("live limits", limit_list(st.limits)),
+        (
+            "clutch length",
+            format!("{} mm", show(st.clutch_length_um.into(), 3)),
+        ),
+        (
+            "stiffness",
+            format!("{} N·m/rad", show(st.stiffness_mnm_per_rad.into(), 3)),
+        ),
+        (
+            "tick",
+            format!("{} ({} s)", st.tick, trim(f64::from(st.tick) / 1e3)),
+        ),
+        ("moving", if st.moving { "yes" } else { "no" }.to_string()),
+        (
+            "telemetry",
+            if st.telemetry_rate_hz == 0 {
+                format!("off, {} samples dropped", st.telemetry_dropped)
+            } else {
+                format!(
+                    "{} Hz, {} samples dropped",
+                    st.telemetry_rate_hz, st.telemetry_dropped
+                )
+            },
+        ),
+        ("protocol errors", st.protocol_errors.to_string()),
+    ];
+    let mut s = String::new();
+    for (k, v) in rows {
+        let _ = writeln!(s, "{k:<16} {v}");
+    }
+    s
+}
+
+/// Arguments of `vsa script`.
+#[derive(Args, Debug)]
+pub struct ScriptArgs {
+    /// Board commands, one per argument, run in order on one connection, e.g.
+    /// "clutch 3mm" "enable" "move 0.5rad --duration 300ms" "record --seconds 2 --csv out.csv"
+    #[arg(value_name = "COMMAND", required = true, num_args = 1..)]
+    pub commands: Vec<String>,
+    /// Send no heartbeats. By default the script sends one every 20 ms while it waits,
+    /// which arms the board's 100 ms command timeout: the board then latches
+    /// `command-timeout` (motor off) 100 ms after the script ends.
+    #[arg(long)]
+    pub no_heartbeat: bool,
+}
+
+/// One line of a script.
+#[derive(Parser, Debug)]
+#[command(name = "script", no_binary_name = true, disable_help_flag = true)]
+struct ScriptLine {
+    #[command(subcommand)]
+    command: BoardCommand,
+}
+
+/// Splits a command line into words: whitespace separates, '…' and "…" quote.
+fn split_words(s: &str) -> Result<Vec<String>, String> {
+    let mut words = Vec::new();
+    let mut cur = String::new();
+    let mut in_word = false;
+    let mut quote: Option<char> = None;
+    for ch in s.chars() {
+        match (quote, ch) {
+            (Some(q), c) if c == q => quote = None,
+            (Some(_), c) => cur.push(c),
+            (None, '\'' | '"') => {
+                quote = Some(ch);
+                in_word = true;
+            }
+            (None, c) if c.is_whitespace() => {
+                if in_word {
+                    words.push(std::mem::take(&mut cur));
+                    in_word = false;
+                }
+            }
+            (None, c) => {
+                cur.push(c);
+                in_word = true;
+            }
+        }
+    }
+    if quote.is_some() {
+        return Err("unterminated quote".to_string());
+    }
+    if in_word {
+        words.push(cur);
+    }
+    Ok(words)
+}
+
+/// Runs `vsa script`: parses and checks every line first, then runs them on one session.
+pub fn script(a: &ScriptArgs, conn: &ConnectArgs) -> CliResult<()> {
+    let mut actions = Vec::with_capacity(a.commands.len());
+    for (i, line) in a.commands.iter().enumerate() {
+        let at = || format!("script command {} ('{line}')", i + 1);
+        let words = split_words(line).map_err(|e| CliError::usage(&at(), e))?;
+        if words.is_empty() {
+            return Err(CliError::usage(&at(), "empty command"));
+        }
+        let parsed = ScriptLine::try_parse_from(&words).map_err(|e| {
+            let text = e.render().to_string();
+            let first = text
+                .lines()
+                .next()
+                .unwrap_or("bad command")
+                .trim_start_matches("error: ")
+                .to_string();
+            CliError::usage(&at(), first)
+        })?;
+        let action = plan(&parsed.command).map_err(|e| CliError::usage(&at(), e.to_string()))?;
+        actions.push((line.clone(), action));
+    }
+    let mut session = Session::open(conn)?;
+    session.client.set_heartbeat(!a.no_heartbeat);
+    for (i, (line, action)) in actions.iter().enumerate() {
+        out(&format!("> {line}\n"));
+        exec(action, &mut session).map_err(|e| CliError {
+            arg: Some(format!("script command {} ('{line}')", i + 1)),
+            reason: e.to_string(),
+            code: e.code,
+        })?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn words() {
+        assert_eq!(
+            split_words("record --csv 'my file.csv'  --seconds 2").unwrap(),
+            vec!["record", "--csv", "my file.csv", "--seconds", "2"]
+        );
+        assert_eq!(split_words(" a \"\" b").unwrap(), vec!["a", "", "b"]);
+        assert!(split_words("a 'b").is_err());
+        assert!(split_words("   ").unwrap().is_empty());
+    }
+
+    #[test]
+    fn status_lines() {
+        let st = Status {
+            faults: client::FaultSet::EMPTY
+                .with(FaultCode::OverCurrent)
+                .with(FaultCode::CommandTimeout),
+            clutch_length_um: 3_000,
+            stiffness_mnm_per_rad: 265_463,
+            tick: 12_345,
+            telemetry_rate_hz: 500,
+            ..Status::default()
+        };
+        let s = status_text(&st);
+        assert!(
+            s.contains("faults           over-current (3), command-timeout (9)"),
+            "{s}"
+        );
+        assert!(s.contains("clutch length    3 mm"), "{s}");
+        assert!(s.contains("stiffness        265.463 N·m/rad"), "{s}");
+        assert!(s.contains("tick             12345 (12.345 s)"), "{s}");
+        assert!(
+            s.contains("telemetry        500 Hz, 0 samples dropped"),
+            "{s}"
+        );
+        assert_eq!(fault_list(client::FaultSet(1 << 12)), "unknown bit 12");
+    }
+}

@@ -1,0 +1,165 @@
+//! `vsa serve-qemu`: keeps one emulated board running and relays a TCP port to its command
+//! UART, so that later `vsa --tcp HOST:PORT …` invocations talk to the same board.
+//!
+//! One client at a time (others wait in the listen backlog). A 0x00 goes to the board when
+//! a client connects, to flush any partial frame an earlier client left; what the board
+//! sends while no client is connected (e.g. telemetry still streaming) is dropped.
+
+use std::io::{Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::Duration;
+
+use clap::Args;
+use client::qemu::{QemuBoard, QemuOptions, READY_PING_INTERVAL, READY_TIMEOUT};
+use client::Client;
+
+use super::ConnectArgs;
+use crate::error::{CliError, CliResult};
+
+/// Arguments of `vsa serve-qemu`.
+#[derive(Args, Debug)]
+pub struct ServeArgs {
+    /// Address to accept `--tcp` clients on (port 0: any free port, printed)
+    #[arg(long, value_name = "HOST:PORT", default_value = "127.0.0.1:0")]
+    pub listen: String,
+}
+
+fn io_err(what: &str) -> impl Fn(std::io::Error) -> CliError + '_ {
+    move |e| CliError::runtime(format!("{what}: {e}"))
+}
+
+/// Runs `vsa serve-qemu` until QEMU exits or the process is stopped (Ctrl-C).
+pub fn run(a: &ServeArgs, conn: &ConnectArgs) -> CliResult<()> {
+    for (given, name) in [
+        (conn.port.is_some(), "--port"),
+        (conn.baud.is_some(), "--baud"),
+        (conn.tcp.is_some(), "--tcp"),
+    ] {
+        if given {
+            return Err(CliError::usage(
+                name,
+                "serve-qemu always starts an emulated board (use --board, --elf, --qemu-log)",
+            ));
+        }
+    }
+    let listener = TcpListener::bind(&a.listen)
+        .map_err(|e| CliError::usage("--listen", format!("{}: {e}", a.listen)))?;
+    let addr = listener.local_addr().map_err(io_err("--listen"))?;
+    let target = conn.qemu_target()?;
+    let elf = target.elf()?;
+    let sink = target.sink()?;
+    let (qemu, transport) = QemuBoard::spawn(&QemuOptions::new(target.board, elf), sink)
+        .map_err(|e| CliError::runtime(e.to_string()))?;
+    let qemu = super::adopt(qemu);
+    let to_qemu = transport
+        .stream()
+        .try_clone()
+        .map_err(io_err("QEMU socket"))?;
+    let mut probe = Client::new(transport);
+    if let Err(e) = probe.wait_ready(READY_TIMEOUT, READY_PING_INTERVAL) {
+        return Err(CliError::runtime(format!(
+            "the {} firmware did not answer: {e}{}",
+            target.board,
+            qemu.exit_report()
+        )));
+    }
+    drop(probe);
+    to_qemu
+        .set_read_timeout(None)
+        .map_err(io_err("QEMU socket"))?;
+    let from_qemu = to_qemu.try_clone().map_err(io_err("QEMU socket"))?;
+    super::out(&format!(
+        "serving {} (QEMU pid {}) on {addr}: run `vsa --tcp {addr} COMMAND`; Ctrl-C stops\n",
+        target.board,
+        qemu.pid()
+    ));
+
+    let current: Arc<Mutex<Option<TcpStream>>> = Arc::new(Mutex::new(None));
+    let dead = Arc::new(AtomicBool::new(false));
+    {
+        let (current, dead) = (Arc::clone(&current), Arc::clone(&dead));
+        std::thread::spawn(move || board_to_client(from_qemu, &current, &dead));
+    }
+    relay(&listener, to_qemu, &current, &dead)?;
+    Err(CliError::runtime(format!(
+        "QEMU closed the connection{}",
+        qemu.exit_report()
+    )))
+}
+
+/// Copies the board's bytes to the current client, or drops them.
+fn board_to_client(mut from: TcpStream, current: &Mutex<Option<TcpStream>>, dead: &AtomicBool) {
+    let mut buf = [0u8; 4096];
+    loop {
+        let n = match from.read(&mut buf) {
+            Ok(0) | Err(_) => break,
+            Ok(n) => n,
+        };
+        let mut cur = current.lock().unwrap_or_else(PoisonError::into_inner);
+        if let (Some(c), Some(bytes)) = (cur.as_mut(), buf.get(..n)) {
+            if c.write_all(bytes).is_err() {
+                *cur = None;
+            }
+        }
+    }
+    dead.store(true, Ordering::Relaxed);
+}
+
+/// Accepts clients one at a time and copies their bytes to the board; returns when the
+/// board's connection is gone.
+fn relay(
+    listener: &TcpListener,
+    mut to: TcpStream,
+    current: &Mutex<Option<TcpStream>>,
+    dead: &AtomicBool,
+) -> CliResult<()> {
+    listener.set_nonblocking(true).map_err(io_err("listener"))?;
+    let mut buf = [0u8; 4096];
+    while !dead.load(Ordering::Relaxed) {
+        let (mut client, peer) = match listener.accept() {
+            Ok(c) => c,
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                std::thread::sleep(Duration::from_millis(20));
+                continue;
+            }
+            Err(e) => return Err(io_err("accepting a client")(e)),
+        };
+        let setup = client
+            .set_nonblocking(false)
+            .and_then(|()| client.set_nodelay(true))
+            .and_then(|()| client.set_read_timeout(Some(Duration::from_millis(100))))
+            .and_then(|()| client.try_clone());
+        let Ok(writer) = setup else { continue };
+        eprintln!("client {peer} connected");
+        *current.lock().unwrap_or_else(PoisonError::into_inner) = Some(writer);
+        if to.write_all(&[0]).is_err() {
+            return Ok(());
+        }
+        loop {
+            match client.read(&mut buf) {
+                Ok(0) => break,
+                Ok(n) => {
+                    if to.write_all(buf.get(..n).unwrap_or_default()).is_err() {
+                        return Ok(());
+                    }
+                }
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                    ) =>
+                {
+                    if dead.load(Ordering::Relaxed) {
+                        return Ok(());
+                    }
+                }
+                Err(_) => break,
+            }
+        }
+        *current.lock().unwrap_or_else(PoisonError::into_inner) = None;
+        eprintln!("client {peer} disconnected");
+    }
+    Ok(())
+}
