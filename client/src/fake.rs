@@ -26,7 +26,7 @@ use crate::names::request_name;
 /// Stiffness at L = 1 mm of the paper preset, mN·m/rad (k ∝ 1/L³ in the fake).
 const K_AT_1MM: f64 = 7_167_500.0;
 /// The board's command timeout, ms.
-const COMMAND_TIMEOUT_MS: u32 = 100;
+pub const COMMAND_TIMEOUT_MS: u32 = 100;
 
 /// How the fake board misbehaves (all off by default).
 #[derive(Clone, Debug, Default)]
@@ -73,6 +73,8 @@ pub struct MockDevice {
     pub heartbeats: u32,
     /// Tick of the last heartbeat (the command timeout is armed once one came).
     pub last_heartbeat: Option<u32>,
+    /// Command timeout, ms ([`COMMAND_TIMEOUT_MS`] like the firmware's by default).
+    pub command_timeout_ms: u32,
     /// Every well-formed request the handler passed on, in order (pings and status
     /// requests included, heartbeats not).
     pub log: Vec<Request>,
@@ -95,6 +97,7 @@ impl Default for MockDevice {
             telemetry_dropped: 0,
             heartbeats: 0,
             last_heartbeat: None,
+            command_timeout_ms: COMMAND_TIMEOUT_MS,
             log: Vec::new(),
             tick: 0,
         }
@@ -119,7 +122,7 @@ impl MockDevice {
     fn supervise(&mut self) {
         if let Some(t) = self.last_heartbeat {
             let since = self.tick.saturating_sub(t);
-            if since > COMMAND_TIMEOUT_MS && !self.faults.contains(FaultCode::CommandTimeout) {
+            if since > self.command_timeout_ms && !self.faults.contains(FaultCode::CommandTimeout) {
                 self.faults = self.faults.with(FaultCode::CommandTimeout);
                 self.first_fault.get_or_insert(FaultRecord {
                     code: FaultCode::CommandTimeout,

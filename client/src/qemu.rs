@@ -311,12 +311,17 @@ impl QemuBoard {
         match client.wait_ready(opts.ready_timeout, READY_PING_INTERVAL) {
             Ok(()) => Ok((qemu, client)),
             Err(e) => {
-                let why = qemu.exit_report();
+                let what = match e {
+                    Error::Timeout { .. } => {
+                        format!("within {} s", opts.ready_timeout.as_secs())
+                    }
+                    other => format!("({other})"),
+                };
                 Err(Error::Qemu(format!(
-                    "the {} firmware did not answer a ping within {} s ({e}){why}; is it a \
-                     firmware that serves the protocol (--serve)?",
+                    "the {} firmware did not answer a ping {what}{}; is it a firmware that \
+                     serves the protocol (--serve)?",
                     opts.board,
-                    opts.ready_timeout.as_secs()
+                    qemu.exit_report()
                 )))
             }
         }
@@ -465,10 +470,16 @@ impl QemuBoard {
             .unwrap_or_default()
     }
 
-    /// `"; QEMU exited (status): stderr"` if QEMU has exited, else `""`: to append to an
-    /// error message when the connection fails.
+    /// `"; QEMU exited (status): stderr"` if QEMU has exited (waiting up to 300 ms for it
+    /// to), else `""`: to append to an error message when the connection fails.
     pub fn exit_report(&mut self) -> String {
-        match self.try_wait() {
+        let start = Instant::now();
+        let mut status = self.try_wait();
+        while status.is_none() && start.elapsed() < Duration::from_millis(300) {
+            std::thread::sleep(Duration::from_millis(10));
+            status = self.try_wait();
+        }
+        match status {
             None => String::new(),
             Some(status) => {
                 // Give the stderr thread a moment to collect the last words.

@@ -99,7 +99,7 @@ impl Transport for TcpTransport {
         match self.stream.read(buf) {
             Ok(0) if !buf.is_empty() => Err(io::Error::new(
                 io::ErrorKind::UnexpectedEof,
-                format!("{} closed the connection", self.peer),
+                "the other end closed the connection",
             )),
             Ok(n) => Ok(n),
             Err(e) if timed_out(&e) => Ok(0),

@@ -264,6 +264,9 @@ fn telemetry_is_buffered_while_waiting_for_replies() {
 #[test]
 fn heartbeat_mode_keeps_the_board_alive() {
     let board = FakeBoard::start().unwrap();
+    // Heartbeats every 20 ms; a longer timeout than the firmware's 100 ms keeps the test
+    // steady on a loaded machine.
+    board.shared().device.command_timeout_ms = 250;
     let mut c = connect(&board);
     c.set_heartbeat(true);
     c.wait(Duration::from_millis(400)).unwrap();
@@ -279,7 +282,7 @@ fn heartbeat_mode_keeps_the_board_alive() {
 
     // Heartbeats stop while the client is idle: the board latches command-timeout.
     c.set_heartbeat(false);
-    std::thread::sleep(Duration::from_millis(300));
+    std::thread::sleep(Duration::from_millis(600));
     let s = c.status().unwrap();
     assert_eq!(s.state, State::Faulted);
     assert!(s.faults.contains(FaultCode::CommandTimeout));
