@@ -11,8 +11,9 @@ use crate::board::{self, Io, World};
 use crate::timing;
 use cortex_m::peripheral::{SCB, SYST};
 use drivers::{AngleSensor, BridgeState, CurrentSensor};
-use model::servo::{BridgeDemand, Servo, TickInput};
+use model::servo::{BridgeDemand, TickInput};
 use model::supervisor::{Fault, Sensor};
+use service::Actuator;
 
 /// Per-tick cost accounting, SysTick counts (core clock).
 #[derive(Clone, Copy, Debug, Default, defmt::Format)]
@@ -37,11 +38,13 @@ pub struct TickResult {
     pub overran: bool,
     /// SysTick counts the whole tick took.
     pub busy_counts: u32,
+    /// The telemetry sample of this tick, if one is due.
+    pub telemetry: Option<crate::link::Sample>,
 }
 
-/// The per-tick state: the servo, the board's I/O and the world around it.
+/// The per-tick state: the board's I/O and the world around it (the servo is in the
+/// [`Actuator`] shared with the link task).
 pub struct ControlLoop {
-    servo: Servo,
     io: Io,
     world: World,
     last: TickInput,
@@ -50,10 +53,9 @@ pub struct ControlLoop {
 }
 
 impl ControlLoop {
-    /// A loop over `io` in `world`, running `servo`.
-    pub fn new(servo: Servo, io: Io, world: World) -> Self {
+    /// A loop over `io` in `world`.
+    pub fn new(io: Io, world: World) -> Self {
         Self {
-            servo,
             io,
             world,
             last: TickInput {
@@ -118,16 +120,17 @@ impl ControlLoop {
         }
     }
 
-    /// Runs one 1 ms control period. `entry` is the SysTick value when the interrupt
-    /// handler started.
+    /// Runs one 1 ms control period of `actuator`'s servo. `entry` is the SysTick value
+    /// when the interrupt handler started.
     #[inline(never)]
-    pub fn tick(&mut self, entry: u32) -> TickResult {
-        let plan = self.world.begin_tick(&mut self.io, &mut self.servo);
+    pub fn tick(&mut self, entry: u32, actuator: &mut Actuator) -> TickResult {
+        let plan = self.world.begin_tick(&mut self.io, &mut actuator.servo);
         let t1 = SYST::get_current();
         let input = self.read_inputs();
-        let out = self.servo.tick(&input);
+        let out = actuator.servo.tick(&input);
         self.drive(out.bridge);
         let t2 = SYST::get_current();
+        let telemetry = actuator.after_tick(&input, &out);
         if plan.overrun {
             busy_wait_past_deadline();
         }
@@ -135,7 +138,7 @@ impl ControlLoop {
         let overran = SCB::is_pendst_pending();
         let busy_counts = timing::systick_elapsed(entry, SYST::get_current(), board::SYSCLK_HZ);
         let late = if overran {
-            let f = self.servo.deadline_missed(busy_counts);
+            let f = actuator.servo.deadline_missed(busy_counts);
             if f.is_some() {
                 self.drive(BridgeDemand::Off);
             }
@@ -143,7 +146,7 @@ impl ControlLoop {
         } else {
             None
         };
-        self.world.end_tick(&self.servo, &out, late, &self.io);
+        self.world.end_tick(&actuator.servo, &out, late, &self.io);
 
         let world = timing::systick_elapsed(entry, t1, board::SYSCLK_HZ);
         let step = timing::systick_elapsed(t1, t2, board::SYSCLK_HZ);
@@ -157,6 +160,7 @@ impl ControlLoop {
             fault: out.new_fault.or(late),
             overran,
             busy_counts,
+            telemetry,
         }
     }
 }

@@ -9,6 +9,15 @@
 //!    missed deadline: if SysTick fired again before the task finished, the period overran
 //!    (the supervisor latches `deadline-missed` and the motor goes off). Everything to log
 //!    goes into a bounded queue, never blocking: a full queue drops and counts.
+//! 2. `uart_rx`: hardware task bound to USART2's interrupt: moves each received byte of
+//!    the host link into a bounded queue (a full queue loses the byte and counts it; the
+//!    frame then fails its CRC and gets an error reply) and pends `serial`.
+//! 1. `serial`: hardware task bound to EXTI1, pended by software (no EXTI line is used):
+//!    the host link (`link::Link`): decodes the protocol, applies each command to the
+//!    shared actuator under a lock — between two ticks — and answers; sends the telemetry
+//!    the control tick queued (a full queue drops the sample and counts it, never
+//!    blocking the tick). A pended interrupt runs again if pended while running, so no
+//!    byte waits for a later wake-up.
 //! 1. `log`: drains the queue into defmt: faults, the once-a-second timing report, and on
 //!    the emulated boards the scenario's events, results and final verdict (then QEMU
 //!    exits with it).
@@ -36,6 +45,7 @@ compile_error!(
 
 mod board;
 mod control;
+mod link;
 mod report;
 mod run;
 mod timing;
@@ -44,17 +54,23 @@ mod timing;
 mod app {
     use crate::board;
     use crate::control::ControlLoop;
+    use crate::link::{Link, Sample, RX_QUEUE, TELEMETRY_QUEUE};
     use crate::report::{LogItem, Reporter};
     use crate::run::RunConfig;
     use crate::timing::{self, TickAccounting};
-    use cortex_m::peripheral::SYST;
+    use cortex_m::peripheral::{NVIC, SYST};
     use heapless::spsc::{Consumer, Producer, Queue};
+    use service::Actuator;
 
     /// Items waiting for the log task (a tick's worth of events several times over).
     const LOG_QUEUE: usize = 16;
 
     #[shared]
-    struct Shared {}
+    struct Shared {
+        /// The servo and telemetry state: the control tick's, and the link task's under
+        /// a lock.
+        actuator: Actuator,
+    }
 
     #[local]
     struct Local {
@@ -67,14 +83,25 @@ mod app {
         dropped: u32,
         reporter: Reporter,
         idle_mode: crate::run::IdleMode,
+        link: Link,
+        serial_rx: board::SerialRx,
+        rx_tx: Producer<'static, u8>,
+        rx_lost: u32,
+        telemetry_tx: Producer<'static, Sample>,
     }
 
-    #[init(local = [queue: Queue<LogItem, LOG_QUEUE> = Queue::new()])]
+    #[init(local = [
+        queue: Queue<LogItem, LOG_QUEUE> = Queue::new(),
+        rx_queue: Queue<u8, RX_QUEUE> = Queue::new(),
+        telemetry_queue: Queue<Sample, TELEMETRY_QUEUE> = Queue::new(),
+    ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let mut core = cx.core;
         let run: RunConfig = board::run_config();
         let parts = board::init(cx.device, &run);
         let (log_tx, log_rx) = cx.local.queue.split();
+        let (rx_tx, rx_rx) = cx.local.rx_queue.split();
+        let (telemetry_tx, telemetry_rx) = cx.local.telemetry_queue.split();
         timing::start_systick(&mut core.SYST, board::SYSCLK_HZ);
         defmt::info!(
             "vsa firmware {=str} on {=str}: sysclk {=u32} Hz, control loop {=u32} Hz, idle {}",
@@ -84,10 +111,16 @@ mod app {
             timing::CONTROL_HZ,
             run.idle,
         );
+        defmt::info!(
+            "host link: USART2, protocol version {=u8}",
+            protocol::VERSION
+        );
         (
-            Shared {},
+            Shared {
+                actuator: Actuator::new(parts.servo),
+            },
             Local {
-                control: ControlLoop::new(parts.servo, parts.io, parts.world),
+                control: ControlLoop::new(parts.io, parts.world),
                 accounting: TickAccounting::new(),
                 board_clock: parts.clock,
                 panic_at_tick: run.panic_at_tick,
@@ -96,20 +129,40 @@ mod app {
                 dropped: 0,
                 idle_mode: run.idle,
                 reporter: Reporter::new(run),
+                link: Link::new(parts.service, rx_rx, telemetry_rx, parts.serial_tx),
+                serial_rx: parts.serial_rx,
+                rx_tx,
+                rx_lost: 0,
+                telemetry_tx,
             },
         )
     }
 
     /// The 1 kHz control period, at the highest priority.
-    #[task(binds = SysTick, priority = 3, local = [control, accounting, board_clock, panic_at_tick, log_tx, dropped])]
-    fn control_tick(cx: control_tick::Context) {
+    #[task(binds = SysTick, priority = 3, shared = [actuator], local = [control, accounting, board_clock, panic_at_tick, log_tx, dropped, telemetry_tx])]
+    fn control_tick(mut cx: control_tick::Context) {
         let entry = SYST::get_current();
         let tick = cx.local.accounting.ticks() + 1;
         if *cx.local.panic_at_tick == Some(tick) {
             panic!("injected panic at tick {}", tick);
         }
         let now_us = cx.local.board_clock.now_us();
-        let result = cx.local.control.tick(entry);
+        let control = &mut *cx.local.control;
+        let telemetry_tx = cx.local.telemetry_tx;
+        // The highest priority: the lock costs nothing and the link task never holds it
+        // across a tick.
+        let result = cx.shared.actuator.lock(|actuator| {
+            let result = control.tick(entry, actuator);
+            if let Some(sample) = result.telemetry {
+                if telemetry_tx.enqueue(sample).is_err() {
+                    actuator.telemetry.count_dropped();
+                }
+            }
+            result
+        });
+        if result.telemetry.is_some() {
+            NVIC::pend(board::pac::Interrupt::EXTI1);
+        }
         timing::publish_tick(tick);
 
         let tx = cx.local.log_tx;
@@ -137,6 +190,23 @@ mod app {
             // Already pending or running: it drains everything queued when it runs.
             let _ = log::spawn();
         }
+    }
+
+    /// The host link's receive interrupt: queue the bytes, wake the link task.
+    #[task(binds = USART2, priority = 2, local = [serial_rx, rx_tx, rx_lost])]
+    fn uart_rx(cx: uart_rx::Context) {
+        while let Some(received) = cx.local.serial_rx.read() {
+            if received.error || cx.local.rx_tx.enqueue(received.byte).is_err() {
+                *cx.local.rx_lost = cx.local.rx_lost.saturating_add(1);
+            }
+        }
+        NVIC::pend(board::pac::Interrupt::EXTI1);
+    }
+
+    /// The host link: commands in, replies and telemetry out (see `link`).
+    #[task(binds = EXTI1, priority = 1, shared = [actuator], local = [link])]
+    fn serial(mut cx: serial::Context) {
+        cx.local.link.poll(&mut cx.shared.actuator);
     }
 
     /// Writes the queued items to defmt (and ends an emulated run).

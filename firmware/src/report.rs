@@ -65,15 +65,19 @@ impl Reporter {
                     report.busy_max_counts,
                     report.dropped_reports,
                 );
+                // The emulated boards log a second only when it had an overrun (a long
+                // run would otherwise print a line per second).
                 #[cfg(feature = "qemu")]
-                defmt::debug!(
-                    "second {=u32}: {=u32} ticks, {=u32} overruns, tick busy max {=u32} sysclk counts, {=u32} log items dropped",
-                    report.second,
-                    report.ticks,
-                    report.overruns,
-                    report.busy_max_counts,
-                    report.dropped_reports,
-                );
+                if report.overruns > 0 {
+                    defmt::warn!(
+                        "second {=u32}: {=u32} ticks, {=u32} overruns, tick busy max {=u32} sysclk counts, {=u32} log items dropped",
+                        report.second,
+                        report.ticks,
+                        report.overruns,
+                        report.busy_max_counts,
+                        report.dropped_reports,
+                    );
+                }
                 if self.run.is_last_second(report.second) {
                     defmt::warn!("--seconds {=u32} reached: stopping", report.second);
                     let passed = self.timing_verdict(0);

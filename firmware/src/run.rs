@@ -14,6 +14,14 @@ pub struct RunConfig {
     /// The scenario to run (emulated boards; default the step sweep).
     #[cfg(feature = "qemu")]
     pub scenario: plant::scenario::ScenarioId,
+    /// Serve the host protocol on USART2 with the simulated actuator instead of running a
+    /// scenario (emulated boards; `--serve`). Runs until QEMU is stopped or `--seconds`.
+    #[cfg(feature = "qemu")]
+    pub serve: bool,
+    /// While serving: constant load hung on the link at the first driven tick, mN·m
+    /// (`--load-mnm N`, |N| ≤ 2000; default 0: nothing attached).
+    #[cfg(feature = "qemu")]
+    pub serve_load_mnm: i32,
     /// QEMU's `-icount` shift, if the runner passed it: one instruction takes 2^shift ns of
     /// virtual time, so SysTick counts convert to instructions.
     pub icount_shift: Option<u8>,
@@ -38,12 +46,17 @@ impl RunConfig {
             panic_at_tick: None,
             #[cfg(feature = "qemu")]
             scenario: plant::scenario::ScenarioId::StepSweep,
+            #[cfg(feature = "qemu")]
+            serve: false,
+            #[cfg(feature = "qemu")]
+            serve_load_mnm: 0,
             icount_shift: None,
         }
     }
 
-    /// Parses `--scenario NAME`, `--seconds N` (stop after N s even if the scenario has
-    /// not ended), `--idle wfi|spin`, `--inject-panic-at-tick N` and `--icount-shift N`.
+    /// Parses `--scenario NAME`, `--serve`, `--seconds N` (stop after N s even if the
+    /// scenario has not ended), `--idle wfi|spin`, `--inject-panic-at-tick N` and
+    /// `--icount-shift N`, `--load-mnm N`.
     pub fn parse<'a>(
         args: impl Iterator<Item = &'a str>,
         default_idle: IdleMode,
@@ -52,6 +65,10 @@ impl RunConfig {
         let mut args = args;
         while let Some(arg) = args.next() {
             match arg {
+                #[cfg(feature = "qemu")]
+                "--serve" => {
+                    config.serve = true;
+                }
                 "--seconds" => {
                     let value = args.next().ok_or(RunConfigError::MissingValue)?;
                     let seconds: u32 = value.parse().map_err(|_| RunConfigError::BadSeconds)?;
@@ -59,6 +76,15 @@ impl RunConfig {
                         return Err(RunConfigError::BadSeconds);
                     }
                     config.seconds = Some(seconds);
+                }
+                #[cfg(feature = "qemu")]
+                "--load-mnm" => {
+                    let value = args.next().ok_or(RunConfigError::MissingValue)?;
+                    let load: i32 = value.parse().map_err(|_| RunConfigError::BadLoad)?;
+                    if load.abs() > 2000 {
+                        return Err(RunConfigError::BadLoad);
+                    }
+                    config.serve_load_mnm = load;
                 }
                 "--idle" => {
                     config.idle = match args.next().ok_or(RunConfigError::MissingValue)? {
@@ -113,6 +139,8 @@ pub enum RunConfigError {
     UnknownScenario,
     /// `--icount-shift` is not 0..=10.
     BadShift,
+    /// `--load-mnm` is not an integer within ±2000.
+    BadLoad,
     /// An argument this firmware does not know.
     UnknownArgument,
 }

@@ -103,6 +103,12 @@ impl Prepared {
             supervisor,
         })
     }
+
+    /// The prepared controller (its schedule: L, k, gains).
+    #[must_use]
+    pub const fn controller(&self) -> &Controller {
+        &self.controller
+    }
 }
 
 /// The controller, the supervisor and the enable state.
@@ -251,6 +257,20 @@ impl Servo {
         self.supervisor.install_thresholds(&prepared.supervisor);
         self.supervisor.forget_history();
         self.enable()
+    }
+
+    /// Installs a configuration prepared ahead of time without leaving the current state:
+    /// its controller and thresholds are copied in (no maths) and the sensor history is
+    /// forgotten. An enabled servo stays enabled and holds the link where it is (the
+    /// controller restarts as on [`Servo::enable`]); a disabled or faulted one stays so,
+    /// and latched faults stay latched. The heartbeat timeout keeps running.
+    pub fn install_prepared(&mut self, prepared: &Prepared) {
+        self.controller = prepared.controller.clone();
+        self.supervisor.install_thresholds(&prepared.supervisor);
+        self.supervisor.forget_history();
+        if self.state == ServoState::Enabled {
+            self.controller.reset();
+        }
     }
 
     /// The design in use.

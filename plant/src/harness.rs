@@ -13,7 +13,7 @@
 //! the integrator), give the command, run `run_ticks` more. Metrics use the plant's *true*
 //! link angle and beam stress.
 
-use model::control::{Command, Config, ControlError, Controller, Flags, Measurements};
+use model::control::{Command, Config, ControlError, Controller, Flags, Measurements, Schedule};
 use model::Design;
 
 use crate::config::{
@@ -191,14 +191,6 @@ pub fn plant_config(
     load_nm: f32,
 ) -> Result<PlantConfig, ControlError> {
     let sched = model::control::Schedule::new(design, config)?;
-    let setting = sched.setting();
-    let p = design.params();
-    let k = sched.stiffness().to_bits() as f64 / Q64;
-    let len_mm = fx32(setting.length().to_bits());
-    let hysteresis = 1.2 * fx32(p.friction.to_bits()) * fx32(p.pitch_radius.to_bits()) / len_mm;
-    let stress_mpa = setting
-        .root_stress(model::Torque::from_int(1))
-        .map_err(ControlError::Beam)?;
     let m = &config.motor;
     Ok(PlantConfig {
         motor: MotorConfig {
@@ -210,13 +202,7 @@ pub fn plant_config(
             viscous_nm_s_per_rad: fx32(m.viscous.to_bits()) as f32,
             ..MotorConfig::default()
         },
-        coupling: CouplingConfig {
-            stiffness_nm_per_rad: k as f32,
-            free_play_rad: fx32(setting.free_play().to_bits()) as f32,
-            hysteresis_per_rad: hysteresis as f32,
-            stress_per_torque_pa_per_nm: (fx32(stress_mpa.to_bits()) * 1e6) as f32,
-            ..CouplingConfig::default()
-        },
+        coupling: coupling_config(design, &sched)?,
         link: LinkConfig {
             inertia_kg_m2: (fx32(config.link_inertia.to_bits()) * 1e-6) as f32,
             ..LinkConfig::default()
@@ -226,6 +212,29 @@ pub fn plant_config(
             ..LoadConfig::default()
         },
         ..PlantConfig::default()
+    })
+}
+
+/// The beams' coupling at the clutch setting of `sched` (a controller's schedule for
+/// `design`): k, free play, hysteresis c = (6/5)·μ·R/L and root stress per N·m.
+///
+/// # Errors
+/// The stress of the setting does not fit ([`ControlError::Beam`]).
+pub fn coupling_config(design: &Design, sched: &Schedule) -> Result<CouplingConfig, ControlError> {
+    let setting = sched.setting();
+    let p = design.params();
+    let k = sched.stiffness().to_bits() as f64 / Q64;
+    let len_mm = fx32(setting.length().to_bits());
+    let hysteresis = 1.2 * fx32(p.friction.to_bits()) * fx32(p.pitch_radius.to_bits()) / len_mm;
+    let stress_mpa = setting
+        .root_stress(model::Torque::from_int(1))
+        .map_err(ControlError::Beam)?;
+    Ok(CouplingConfig {
+        stiffness_nm_per_rad: k as f32,
+        free_play_rad: fx32(setting.free_play().to_bits()) as f32,
+        hysteresis_per_rad: hysteresis as f32,
+        stress_per_torque_pa_per_nm: (fx32(stress_mpa.to_bits()) * 1e6) as f32,
+        ..CouplingConfig::default()
     })
 }
 

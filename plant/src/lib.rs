@@ -48,6 +48,7 @@ mod coupling;
 pub mod harness;
 pub mod scenario;
 mod sensors;
+pub mod served;
 mod sim;
 
 pub use config::{

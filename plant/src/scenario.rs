@@ -201,6 +201,17 @@ pub struct BridgeLines {
 }
 
 impl BridgeLines {
+    /// What the lines make the bridge do: coast when disabled, else drive with the duty in
+    /// the direction line's sense.
+    #[must_use]
+    pub fn command(self) -> BridgeCommand {
+        if !self.enabled {
+            return BridgeCommand::Coast;
+        }
+        let d = self.duty_permille.min(1000) as i16;
+        BridgeCommand::Drive(if self.forward { d } else { -d })
+    }
+
     /// The lines a correct driver sets for `demand`.
     #[must_use]
     pub fn for_demand(demand: BridgeDemand) -> BridgeLines {
@@ -708,11 +719,8 @@ impl ScenarioRun {
         } else {
             let cmd = if self.pwm_stuck && lines.enabled {
                 BridgeCommand::Drive(1000)
-            } else if !lines.enabled {
-                BridgeCommand::Coast
             } else {
-                let d = lines.duty_permille.min(1000) as i16;
-                BridgeCommand::Drive(if lines.forward { d } else { -d })
+                lines.command()
             };
             self.readings = self.plant.step_tick_cmd(cmd);
         }

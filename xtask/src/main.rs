@@ -59,6 +59,14 @@ enum Task {
     Test,
     /// Build the Nucleo-F446RE firmware and run it on the board with probe-rs.
     Flash,
+    /// Decode a raw defmt log (e.g. QEMU's stdout saved by `vsa --qemu --qemu-log FILE`)
+    /// with the ELF that wrote it.
+    DecodeLog {
+        /// The firmware ELF that produced the log.
+        elf: PathBuf,
+        /// The raw defmt bytes.
+        log: PathBuf,
+    },
     /// Cargo runner for thumb targets: run an ELF on an emulated board.
     #[command(hide = true)]
     QemuRunner {
@@ -126,6 +134,19 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             ExitCode::FAILURE
         }),
         Task::Flash => flash::run(),
+        Task::DecodeLog { elf, log } => {
+            let format = defmt_log::LogFormat::from_elf(&elf)?;
+            let bytes = std::fs::read(&log)
+                .map_err(|e| anyhow::anyhow!("reading {}: {e}", log.display()))?;
+            let mut decoder = format.decoder();
+            for line in decoder.feed(&bytes) {
+                println!("{line}");
+            }
+            if decoder.malformed() > 0 {
+                eprintln!("xtask: {} malformed defmt frames", decoder.malformed());
+            }
+            Ok(ExitCode::SUCCESS)
+        }
         Task::QemuRunner { board, elf, args } => {
             setup::ensure_qemu()?;
             Ok(emulate(board, &elf, &args, test::wall_limit(3600))?.0)

@@ -140,6 +140,13 @@ const ADC_STABILISATION_CORE_CYCLES: u32 = 5 * (SYSCLK_HZ / 1_000_000);
 /// Link encoder counts per turn (1024 lines × 4 edges).
 const LINK_COUNTS_PER_TURN: u16 = 4096;
 
+/// Host link baud rate, Bd: fast enough for 500 Hz telemetry (≈ 31-byte frames, 15.5 kB/s
+/// needs ≥ 155 kBd); the ST-LINK/V2-1 virtual COM port carries it.
+pub const LINK_BAUD: u32 = 921_600;
+
+/// USART2's divider at 16× oversampling: PCLK1 / baud = 48.8 → 49 (918 367 Bd, −0.35 %).
+const LINK_BRR: u16 = ((PCLK1_HZ + LINK_BAUD / 2) / LINK_BAUD) as u16;
+
 /// Watchdog timeout, ms at the nominal LSI of 32 kHz (LSI / 32 = 1 count per ms).
 const WATCHDOG_TIMEOUT_MS: u16 = 80;
 
@@ -245,7 +252,15 @@ pub fn init(device: pac::Peripherals, _run: &RunConfig) -> Parts {
     )
     .install();
 
+    // The host link: USART2 on the ST-LINK virtual COM port.
+    let _link_tx = gpioa.pa2.into_alternate::<7>();
+    let _link_rx = gpioa.pa3.into_alternate::<7>();
+    pac::USART2::enable(&mut rcc);
+    pac::USART2::reset(&mut rcc);
+    let (serial_rx, serial_tx) = super::Serial::start(device.USART2, LINK_BRR);
+
     let world = World::start(device.IWDG);
+    let (servo, service) = default_servo();
 
     Parts {
         clock: IndependentClock::start(tim2, prescaler),
@@ -256,7 +271,10 @@ pub fn init(device: pac::Peripherals, _run: &RunConfig) -> Parts {
             bridge,
         },
         world,
-        servo: default_servo(),
+        servo,
+        service,
+        serial_rx,
+        serial_tx,
     }
 }
 
@@ -265,10 +283,12 @@ pub const START_CLUTCH_MM: i32 = 3;
 
 /// The paper preset at [`START_CLUTCH_MM`], default supervision, disabled: the motor stays
 /// off until the host enables it.
-fn default_servo() -> Servo {
+fn default_servo() -> (Servo, service::Service) {
+    let design = Design::paper();
     let config = ControlConfig::paper(Length::from_int(START_CLUTCH_MM));
-    match Servo::new(&Design::paper(), &config, &SupervisorConfig::DEFAULT) {
-        Ok(servo) => servo,
+    let supervision = SupervisorConfig::DEFAULT;
+    match Servo::new(&design, &config, &supervision) {
+        Ok(servo) => (servo, service::Service::new(design, config, supervision)),
         Err(e) => defmt::panic!("servo configuration rejected: {}", e),
     }
 }

@@ -7,6 +7,19 @@
 //! RCC says. defmt frames leave through semihosting (`defmt-semihosting`); the run's
 //! arguments arrive through semihosting too, and so does the exit status.
 //!
+//! The host link is USART2, QEMU's *second* `-serial` device (`-serial null -serial
+//! tcp:…`): the receive interrupt works (`RXNEIE`), and transmission is immediate.
+//!
+//! # Serving the host protocol (`--serve`)
+//!
+//! A board that talks to a host must keep time with it (heartbeats every ≤ 100 ms of the
+//! board's time are sent in real time). It runs under `-icount shift=3,sleep=on,align=on`
+//! and keeps spinning when idle: virtual time is still the instruction count (8 ns each),
+//! and QEMU sleeps whenever the guest runs ahead of real time. With WFI and `sleep=on`,
+//! virtual time instead jumps to real time after every idle period, and a jump past a
+//! SysTick period looks like a missed deadline to the control tick (measured: a
+//! `deadline-missed` fault within 220 ticks).
+//!
 //! # Idle: spin, not WFI
 //!
 //! Under QEMU 7.2 with `-icount shift=3,sleep=off`, a core sleeping in WFI is woken by
@@ -41,6 +54,11 @@ pub const SYSCLK_HZ: u32 = 168_000_000;
 #[cfg(feature = "qemu-m3")]
 pub const SYSCLK_HZ: u32 = 120_000_000;
 
+/// USART2's baud-rate divider. QEMU's STM32F2xx USART model ignores it (bytes move at the
+/// speed of its character device, here a TCP socket); the value is 115 200 Bd at the
+/// F405's 42 MHz APB1 for the record.
+const QEMU_USART_BRR: u16 = 365;
+
 /// Input clock of QEMU's STM32F2xx/F4xx TIM2–5 model, Hz.
 const QEMU_TIMER_INPUT_HZ: u32 = 1_000_000_000;
 
@@ -48,12 +66,20 @@ const QEMU_TIMER_INPUT_HZ: u32 = 1_000_000_000;
 /// scenario.
 pub fn init(device: pac::Peripherals, run: &RunConfig) -> Parts {
     let prescaler = (QEMU_TIMER_INPUT_HZ / 1_000_000 - 1) as u16;
-    let (world, servo) = super::World::new(run.scenario);
+    let (world, servo, service) = if run.serve {
+        super::World::serve(run.serve_load_mnm)
+    } else {
+        super::World::new(run.scenario)
+    };
+    let (serial_rx, serial_tx) = super::Serial::start(device.USART2, QEMU_USART_BRR);
     Parts {
         clock: IndependentClock::start(device.TIM2, prescaler),
         io: super::Io::new(),
         world,
         servo,
+        service,
+        serial_rx,
+        serial_tx,
     }
 }
 

@@ -10,9 +10,13 @@ use core::convert::Infallible;
 use drivers::{AngleSensor, CurrentSensor, HBridge, SensorError};
 use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
 use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
+use model::control::Config;
 use model::servo::{Servo, TickOutput};
-use model::supervisor::Fault;
+use model::supervisor::{Fault, SupervisorConfig};
+use model::{Design, Length};
 use plant::scenario::{Action, BridgeLines, ScenarioEvent, ScenarioId, ScenarioRun};
+use plant::served::ServedActuator;
+use service::Service;
 
 /// Simulated PWM channel: the duty in ‰ of the period (max duty 1000).
 #[derive(Default)]
@@ -129,15 +133,25 @@ pub struct TickPlan {
     pub overrun: bool,
 }
 
-/// The simulated world: the scenario and its plant.
+/// The simulated world: a scripted scenario and its plant, or (serving the host protocol)
+/// the plant alone, commanded from the host.
 pub struct World {
-    run: ScenarioRun,
-    actions: heapless::Vec<Action, 3>,
+    kind: WorldKind,
+}
+
+// One world per run, in a static: the size difference does not matter.
+#[allow(clippy::large_enum_variant)]
+enum WorldKind {
+    Scenario {
+        run: ScenarioRun,
+        actions: heapless::Vec<Action, 3>,
+    },
+    Served(ServedActuator),
 }
 
 impl World {
-    /// Starts `id`; also returns the servo configured for it.
-    pub fn new(id: ScenarioId) -> (World, Servo) {
+    /// Starts scenario `id`; also returns the servo configured for it and its service.
+    pub fn new(id: ScenarioId) -> (World, Servo, Service) {
         let run = match ScenarioRun::new(id) {
             Ok(r) => r,
             Err(e) => defmt::panic!("scenario {=str} rejected: {}", id.name(), e),
@@ -146,46 +160,83 @@ impl World {
             Ok(s) => s,
             Err(e) => defmt::panic!("scenario {=str}: servo rejected: {}", id.name(), e),
         };
+        let plan = run.plan();
+        let config = match plan.segments[0] {
+            Some(seg) => plan.config(&seg),
+            None => defmt::panic!("scenario {=str} has no segment", id.name()),
+        };
+        let service = Service::new(*servo.design(), config, plan.supervision);
+        let kind = WorldKind::Scenario {
+            run,
+            actions: heapless::Vec::new(),
+        };
+        (World { kind }, servo, service)
+    }
+
+    /// The world of a board serving the host protocol: the paper design at
+    /// [`SERVED_CLUTCH_MM`], `load_mnm` mN·m hung on the link once the motor drives
+    /// (see `plant::served`), the servo disabled.
+    pub fn serve(load_mnm: i32) -> (World, Servo, Service) {
+        let design = Design::paper();
+        let config = Config::paper(Length::from_int(SERVED_CLUTCH_MM));
+        let supervision = SupervisorConfig::DEFAULT;
+        let servo = match Servo::new(&design, &config, &supervision) {
+            Ok(s) => s,
+            Err(e) => defmt::panic!("served servo rejected: {}", e),
+        };
+        let plant = match ServedActuator::new(design, &config, load_mnm as f32 / 1000.0) {
+            Ok(p) => p,
+            Err(e) => defmt::panic!("served plant rejected: {}", e),
+        };
+        let kind = WorldKind::Served(plant);
         (
-            World {
-                run,
-                actions: heapless::Vec::new(),
-            },
+            World { kind },
             servo,
+            Service::new(design, config, supervision),
         )
     }
 
     /// Start of a tick: the plant advances one period with the bridge lines as they are,
-    /// the new readings go to the sensors, the scenario's actions to the servo.
+    /// the new readings go to the sensors, a scenario's actions to the servo.
     pub fn begin_tick(&mut self, io: &mut Io, servo: &mut Servo) -> TickPlan {
-        let overrun = self.run.begin_tick(io.lines(), &mut self.actions);
-        let r = self.run.readings();
+        let (r, overrun) = match &mut self.kind {
+            WorldKind::Scenario { run, actions } => {
+                let overrun = run.begin_tick(io.lines(), actions);
+                for a in actions.iter() {
+                    if let Err(e) = run.apply(servo, a) {
+                        defmt::warn!("scenario action refused: {}", e);
+                    }
+                }
+                (run.readings(), overrun)
+            }
+            WorldKind::Served(plant) => {
+                (plant.tick(io.lines(), servo.controller().schedule()), false)
+            }
+        };
         io.link.value = r.link_encoder;
         io.pot.value = r.gear_pot;
         io.current.value = r.current_adc;
-        for a in &self.actions {
-            if let Err(e) = self.run.apply(servo, a) {
-                defmt::warn!("scenario action refused: {}", e);
-            }
-        }
         TickPlan { overrun }
     }
 
-    /// End of a tick: metrics, hash and fault timing.
+    /// End of a tick: a scenario's metrics, hash and fault timing.
     pub fn end_tick(&mut self, servo: &Servo, out: &TickOutput, late: Option<Fault>, io: &Io) {
-        self.run.end_tick(servo, out, late, io.lines());
+        if let WorldKind::Scenario { run, .. } = &mut self.kind {
+            run.end_tick(servo, out, late, io.lines());
+        }
     }
 
     /// The next event for the log.
     pub fn pop_event(&mut self) -> Option<ScenarioEvent> {
-        self.run.pop_event()
-    }
-
-    /// Whether the scenario has ended.
-    pub fn is_done(&self) -> bool {
-        self.run.is_done()
+        match &mut self.kind {
+            WorldKind::Scenario { run, .. } => run.pop_event(),
+            WorldKind::Served(_) => None,
+        }
     }
 }
+
+/// Clutch length a serving board starts at, mm.
+pub const SERVED_CLUTCH_MM: i32 = 3;
 
 /// Moves the world's events into the log queue; after the last one, the cost accounting.
 pub fn drain_world(

@@ -17,7 +17,7 @@ const HALF_COUNT_Q32: i64 = 3_294_199;
 /// One encoder count per tick as a velocity, 2π/4096 rad · 1000 /s, Q16 (1.534 rad/s).
 const COUNT_PER_TICK_Q16: i32 = 100_531;
 /// One pot count, 300°/1024 = 5π/(3·1024) rad, in I32F32 bits (rounded).
-pub(crate) const POT_COUNT_Q32: i64 = 21_961_324;
+pub const POT_COUNT_Q32: i64 = 21_961_324;
 /// ADC counts → A in Q16: 1024 counts/A, so ×64.
 const ADC_TO_Q16_SHIFT: u32 = 6;
 

@@ -124,6 +124,6 @@ pub use config::{
     encoder_delta, ClutchSetting, Config, ControlError, GainOverride, Limits, MotorParams,
     PidGains, Schedule, SensorCal,
 };
-pub use controller::{Controller, Flags, Measurements, Output};
+pub use controller::{Controller, Flags, Measurements, Output, POT_COUNT_Q32};
 pub use gain::Gain;
 pub use trajectory::{Command, Reference, Trajectory};

@@ -1,0 +1,488 @@
+//! The command service of the vsa firmware: [`protocol::Device`] over
+//! [`model::servo::Servo`], and the telemetry taken from each control tick.
+//!
+//! Two halves, for two priorities:
+//!
+//! * [`Actuator`] is what the 1 kHz control task and the command task share: the servo,
+//!   the telemetry rate and its drop counter, and the live limits of the last tick. The
+//!   control task owns it during a tick ([`Actuator::after_tick`] takes the telemetry
+//!   sample); the command task reaches it only through an [`rtic_core::Mutex`] (RTIC's
+//!   `lock`), for a few hundred instructions at a time, so every command is applied
+//!   *between* two ticks, never in the middle of one.
+//! * [`Service`] is the command task's own state: the design and the configuration in
+//!   force. A request that changes the configuration (clutch length, stiffness, gains,
+//!   limits) is prepared here first — the slow maths: L(k), the gain schedule, the
+//!   supervisor's thresholds ([`model::servo::Prepared`]) — outside the lock, at the
+//!   command task's priority; only the copy into the servo happens under the lock
+//!   ([`model::servo::Servo::install_prepared`]).
+//!
+//! Unit conversions between the wire (µrad, µm, mN·m/rad, µN·m, mA, ‰, mHz) and the model
+//! (I32F32 rad, mm, N·m, A; I64F64 N·m/rad) are exact integer scalings with
+//! round-to-nearest where a division is needed (see each function).
+#![cfg_attr(not(test), no_std)]
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+
+use model::control::{ClutchSetting, Command, Config, PidGains, POT_COUNT_Q32};
+use model::servo::{BridgeDemand, Prepared, Servo, ServoError, ServoState, TickInput, TickOutput};
+use model::supervisor::{FaultCode as ModelFaultCode, SupervisorConfig};
+use model::{Angle, Design, Frequency, Length, Ratio, Stiffness, Torque};
+use protocol::{
+    Device, ErrorCode, FaultCode, FaultRecord, FaultSet, Gains, LimitFlags, Limits, State, Status,
+    TelemetrySample,
+};
+use rtic_core::Mutex;
+
+use fixed::types::I32F32;
+
+/// One unit in I32F32 bits.
+const Q32: i64 = 1 << 32;
+
+/// Over-current trip above the live current limit, A: the supervisor trips this far above
+/// the clamp the controller holds (the defaults: 1.5 A clamp, 1.75 A trip).
+pub const TRIP_ABOVE_LIMIT_A: I32F32 = I32F32::lit("0.25");
+
+/// `x·num/den` rounded to the nearest integer (ties away from zero), in i128: exact for
+/// every i64 `x` and the small positive constants used here.
+const fn scale_round(x: i128, num: i128, den: i128) -> i128 {
+    let p = x * num;
+    if p >= 0 {
+        (p + den / 2) / den
+    } else {
+        (p - den / 2) / den
+    }
+}
+
+/// Saturates an i128 into i32.
+const fn sat_i32(v: i128) -> i32 {
+    if v > i32::MAX as i128 {
+        i32::MAX
+    } else if v < i32::MIN as i128 {
+        i32::MIN
+    } else {
+        v as i32
+    }
+}
+
+/// Saturates an i128 into u32 (negative → 0).
+const fn sat_u32(v: i128) -> u32 {
+    if v > u32::MAX as i128 {
+        u32::MAX
+    } else if v < 0 {
+        0
+    } else {
+        v as u32
+    }
+}
+
+/// I32F32 bits (value × 2³² of a unit) → millionths of the unit, rounded, saturated to i32.
+/// E.g. rad → µrad, N·m → µN·m.
+#[must_use]
+pub const fn q32_to_micro(bits: i64) -> i32 {
+    sat_i32(scale_round(bits as i128, 1_000_000, Q32 as i128))
+}
+
+/// I32F32 bits → thousandths of the unit (A → mA, mm → µm), rounded, saturated to i32.
+#[must_use]
+pub const fn q32_to_milli(bits: i64) -> i32 {
+    sat_i32(scale_round(bits as i128, 1_000, Q32 as i128))
+}
+
+/// Millionths of a unit → I32F32 bits, rounded (µrad → rad, µN·m → N·m). Every i32 fits.
+#[must_use]
+pub const fn micro_to_q32(v: i64) -> i64 {
+    scale_round(v as i128, Q32 as i128, 1_000_000) as i64
+}
+
+/// Thousandths of a unit → I32F32 bits, rounded (mA → A, µm → mm, ‰ → 1). Every value
+/// below 2.1e12 fits; larger ones saturate.
+#[must_use]
+pub const fn milli_to_q32(v: i64) -> i64 {
+    let b = scale_round(v as i128, Q32 as i128, 1_000);
+    if b > i64::MAX as i128 {
+        i64::MAX
+    } else if b < i64::MIN as i128 {
+        i64::MIN
+    } else {
+        b as i64
+    }
+}
+
+/// A model fault code on the wire (same numbering; checked by the tests).
+#[must_use]
+pub const fn wire_fault_code(code: ModelFaultCode) -> FaultCode {
+    match code {
+        ModelFaultCode::SensorRead => FaultCode::SensorRead,
+        ModelFaultCode::AdcOutOfRange => FaultCode::AdcOutOfRange,
+        ModelFaultCode::OverCurrent => FaultCode::OverCurrent,
+        ModelFaultCode::SensorJump => FaultCode::SensorJump,
+        ModelFaultCode::SensorStuck => FaultCode::SensorStuck,
+        ModelFaultCode::BeamOverload => FaultCode::BeamOverload,
+        ModelFaultCode::PositionLimit => FaultCode::PositionLimit,
+        ModelFaultCode::DeadlineMissed => FaultCode::DeadlineMissed,
+        ModelFaultCode::CommandTimeout => FaultCode::CommandTimeout,
+    }
+}
+
+/// The latched faults of `servo` on the wire.
+#[must_use]
+pub fn wire_faults(servo: &Servo) -> FaultSet {
+    let latched = servo.faults();
+    ModelFaultCode::ALL
+        .iter()
+        .filter(|c| latched.contains(**c))
+        .fold(FaultSet::EMPTY, |set, c| set.with(wire_fault_code(*c)))
+}
+
+/// The live-limit flags of a controller output on the wire.
+#[must_use]
+pub const fn wire_limits(flags: &model::control::Flags) -> LimitFlags {
+    let mut bits = 0;
+    if flags.torque_limited {
+        bits |= LimitFlags::TORQUE;
+    }
+    if flags.current_limited {
+        bits |= LimitFlags::CURRENT;
+    }
+    if flags.duty_saturated {
+        bits |= LimitFlags::DUTY;
+    }
+    LimitFlags(bits)
+}
+
+/// Telemetry pacing: a phase accumulator that lets `rate_hz` of every 1000 ticks through,
+/// evenly spread (500 Hz: every second tick; 300 Hz: 3 of every 10).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TelemetryGate {
+    rate_hz: u16,
+    phase: u16,
+    taken: u16,
+    dropped: u32,
+}
+
+impl TelemetryGate {
+    /// Samples per second, 0 = off.
+    #[must_use]
+    pub const fn rate_hz(&self) -> u16 {
+        self.rate_hz
+    }
+
+    /// Samples dropped because the queue to the link was full, since boot (saturating).
+    #[must_use]
+    pub const fn dropped(&self) -> u32 {
+        self.dropped
+    }
+
+    /// Sets the rate (0 = off; the protocol has checked 10..=500 Hz); the phase restarts.
+    pub fn set_rate(&mut self, rate_hz: u16) {
+        self.rate_hz = rate_hz.min(1000);
+        self.phase = 0;
+    }
+
+    /// Called once per tick: the sequence number of the sample to take now, if one is due
+    /// (a wrapping count of samples taken, dropped ones included).
+    pub fn due(&mut self) -> Option<u16> {
+        if self.rate_hz == 0 {
+            return None;
+        }
+        self.phase += self.rate_hz;
+        if self.phase < 1000 {
+            return None;
+        }
+        self.phase -= 1000;
+        self.taken = self.taken.wrapping_add(1);
+        Some(self.taken)
+    }
+
+    /// Counts a sample the link could not take.
+    pub fn count_dropped(&mut self) {
+        self.dropped = self.dropped.saturating_add(1);
+    }
+}
+
+/// What the control task and the command task share (see the crate docs).
+#[derive(Clone, Debug)]
+pub struct Actuator {
+    /// The servo (controller + supervisor + enable state).
+    pub servo: Servo,
+    /// Telemetry pacing and drop count.
+    pub telemetry: TelemetryGate,
+    limits: LimitFlags,
+}
+
+impl Actuator {
+    /// Wraps `servo`, telemetry off.
+    #[must_use]
+    pub fn new(servo: Servo) -> Self {
+        Self {
+            servo,
+            telemetry: TelemetryGate::default(),
+            limits: LimitFlags::NONE,
+        }
+    }
+
+    /// After [`Servo::tick`]: keeps the live limits for the status and returns the
+    /// telemetry sample (with its sequence number) if one is due in this tick.
+    /// Cheap: integer scalings only, and only at the telemetry rate.
+    pub fn after_tick(
+        &mut self,
+        input: &TickInput,
+        out: &TickOutput,
+    ) -> Option<(u16, TelemetrySample)> {
+        self.limits = wire_limits(&out.control.flags);
+        let seq = self.telemetry.due()?;
+        Some((seq, self.sample(input, out)))
+    }
+
+    /// The telemetry sample of a tick, in wire units.
+    #[must_use]
+    pub fn sample(&self, input: &TickInput, out: &TickOutput) -> TelemetrySample {
+        let c = &out.control;
+        let gear_angle_urad = match input.gear_pot {
+            Some(pot) => {
+                let centre = i64::from(self.servo.controller().config().sensors.pot_center);
+                q32_to_micro((i64::from(pot) - centre).saturating_mul(POT_COUNT_Q32))
+            }
+            None => 0,
+        };
+        TelemetrySample {
+            tick: out.tick,
+            reference_urad: q32_to_micro(c.reference.to_bits()),
+            link_angle_urad: q32_to_micro(c.link_angle.to_bits()),
+            gear_angle_urad,
+            current_ma: q32_to_milli(c.current.to_bits()).clamp(i16::MIN.into(), i16::MAX.into())
+                as i16,
+            torque_unm: q32_to_micro(c.torque_estimate.to_bits()),
+            duty_permille: match out.bridge {
+                BridgeDemand::Drive(d) => d,
+                BridgeDemand::Off => 0,
+            },
+            faults: wire_faults(&self.servo),
+            limits: self.limits,
+        }
+    }
+
+    /// The status report (`protocol_errors` is the handler's to fill in).
+    #[must_use]
+    pub fn status(&self) -> Status {
+        let servo = &self.servo;
+        let sched = servo.controller().schedule();
+        Status {
+            state: match servo.state() {
+                ServoState::Disabled => State::Disabled,
+                ServoState::Enabled => State::Enabled,
+                ServoState::Faulted => State::Faulted,
+            },
+            faults: wire_faults(servo),
+            first_fault: servo.supervisor().first_fault().map(|f| FaultRecord {
+                code: wire_fault_code(f.code),
+                value: f.value,
+                tick: f.tick,
+            }),
+            limits: self.limits,
+            clutch_length_um: sat_u32(i128::from(q32_to_milli(sched.setting().length().to_bits()))),
+            // k in N·m/rad (I64F64) → mN·m/rad, rounded.
+            stiffness_mnm_per_rad: sat_u32(scale_round(
+                sched.stiffness().to_bits() >> 32,
+                1_000,
+                Q32 as i128,
+            )),
+            tick: servo.ticks(),
+            moving: servo.controller().trajectory().is_moving(),
+            telemetry_rate_hz: self.telemetry.rate_hz(),
+            telemetry_dropped: self.telemetry.dropped(),
+            protocol_errors: 0,
+        }
+    }
+}
+
+/// Why a configuration could not be prepared or installed.
+fn refused(e: ServoError) -> ErrorCode {
+    match e {
+        ServoError::Faulted => ErrorCode::NotAllowed,
+        ServoError::Control(_) | ServoError::Supervisor(_) => ErrorCode::OutOfRange,
+    }
+}
+
+/// The command task's state: the design and the configuration in force.
+#[derive(Clone, Debug)]
+pub struct Service {
+    design: Design,
+    config: Config,
+    supervision: SupervisorConfig,
+}
+
+impl Service {
+    /// The service of a servo built from `design`, `config` and `supervision` (the same
+    /// values the servo was built with).
+    #[must_use]
+    pub const fn new(design: Design, config: Config, supervision: SupervisorConfig) -> Self {
+        Self {
+            design,
+            config,
+            supervision,
+        }
+    }
+
+    /// The controller configuration in force.
+    #[must_use]
+    pub const fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// The supervisor configuration in force.
+    #[must_use]
+    pub const fn supervision(&self) -> &SupervisorConfig {
+        &self.supervision
+    }
+
+    /// The [`Device`] the protocol handler drives for one request, over `actuator` (the
+    /// RTIC shared resource, or any [`Mutex`]).
+    pub fn device<'a, M: Mutex<T = Actuator>>(
+        &'a mut self,
+        actuator: &'a mut M,
+    ) -> ServiceDevice<'a, M> {
+        ServiceDevice {
+            service: self,
+            actuator,
+        }
+    }
+}
+
+/// [`Device`] for one request: [`Service`] plus the locked [`Actuator`].
+pub struct ServiceDevice<'a, M> {
+    service: &'a mut Service,
+    actuator: &'a mut M,
+}
+
+impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
+    /// Prepares `config`/`supervision` (slow, unlocked), installs it (a copy, locked) and
+    /// keeps it as the configuration in force. Returns the clutch length L, µm.
+    fn reconfigure(
+        &mut self,
+        config: Config,
+        supervision: SupervisorConfig,
+    ) -> Result<u32, ErrorCode> {
+        let prepared =
+            Prepared::new(&self.service.design, &config, &supervision).map_err(refused)?;
+        let length = prepared.controller().schedule().setting().length();
+        let length_um =
+            u32::try_from(q32_to_milli(length.to_bits())).map_err(|_| ErrorCode::OutOfRange)?;
+        self.actuator.lock(|a| a.servo.install_prepared(&prepared));
+        self.service.config = config;
+        self.service.supervision = supervision;
+        Ok(length_um)
+    }
+
+    /// Gives the servo a motion command; only while enabled.
+    fn motion(&mut self, cmd: Command) -> Result<(), ErrorCode> {
+        self.actuator.lock(|a| {
+            if a.servo.state() != ServoState::Enabled {
+                return Err(ErrorCode::NotAllowed);
+            }
+            a.servo.command(cmd).map_err(refused)
+        })
+    }
+}
+
+impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
+    fn enable(&mut self) -> Result<(), ErrorCode> {
+        self.actuator.lock(|a| a.servo.enable().map_err(refused))
+    }
+
+    fn disable(&mut self) -> Result<(), ErrorCode> {
+        self.actuator.lock(|a| a.servo.disable());
+        Ok(())
+    }
+
+    fn clear_fault(&mut self) -> Result<(), ErrorCode> {
+        self.actuator.lock(|a| a.servo.clear_fault());
+        Ok(())
+    }
+
+    fn set_clutch_length(&mut self, length_um: u32) -> Result<(), ErrorCode> {
+        let mut config = self.service.config;
+        config.clutch = ClutchSetting::Length(Length::from_bits(milli_to_q32(length_um.into())));
+        self.reconfigure(config, self.service.supervision)
+            .map(|_| ())
+    }
+
+    fn set_stiffness(&mut self, stiffness_mnm_per_rad: u32) -> Result<u32, ErrorCode> {
+        let mut config = self.service.config;
+        // mN·m/rad = 1000 µN·m/rad.
+        let k = Stiffness::from_micro(i64::from(stiffness_mnm_per_rad) * 1_000);
+        config.clutch = ClutchSetting::Stiffness(k);
+        self.reconfigure(config, self.service.supervision)
+    }
+
+    fn command_move(&mut self, target_urad: i32, duration_ms: u32) -> Result<(), ErrorCode> {
+        self.motion(Command::Move {
+            target: Angle::from_bits(micro_to_q32(target_urad.into())),
+            duration_ms,
+        })
+    }
+
+    fn command_step(&mut self, target_urad: i32) -> Result<(), ErrorCode> {
+        self.motion(Command::Step {
+            target: Angle::from_bits(micro_to_q32(target_urad.into())),
+        })
+    }
+
+    fn command_sine(&mut self, amplitude_urad: u32, frequency_mhz: u32) -> Result<(), ErrorCode> {
+        let hz = I32F32::from_bits(milli_to_q32(frequency_mhz.into()));
+        let frequency = Frequency::from_hz(hz).map_err(|_| ErrorCode::OutOfRange)?;
+        self.motion(Command::Sine {
+            amplitude: Angle::from_bits(micro_to_q32(amplitude_urad.into())),
+            frequency,
+        })
+    }
+
+    fn hold(&mut self) -> Result<(), ErrorCode> {
+        self.actuator.lock(|a| {
+            if a.servo.state() == ServoState::Faulted {
+                return Err(ErrorCode::NotAllowed);
+            }
+            a.servo.command(Command::Hold).map_err(refused)
+        })
+    }
+
+    fn set_gains(&mut self, gains: Option<Gains>) -> Result<(), ErrorCode> {
+        let mut config = self.service.config;
+        config.gains.gains = gains.map(|g| PidGains {
+            kp: I32F32::from_bits(milli_to_q32(i64::try_from(g.kp).unwrap_or(i64::MAX))),
+            ki: I32F32::from_bits(milli_to_q32(i64::try_from(g.ki).unwrap_or(i64::MAX))),
+            kd: I32F32::from_bits(milli_to_q32(i64::try_from(g.kd).unwrap_or(i64::MAX))),
+        });
+        self.reconfigure(config, self.service.supervision)
+            .map(|_| ())
+    }
+
+    fn set_limits(&mut self, limits: &Limits) -> Result<(), ErrorCode> {
+        let mut config = self.service.config;
+        let mut supervision = self.service.supervision;
+        let current = I32F32::from_bits(milli_to_q32(limits.current_ma.into()));
+        config.limits = model::control::Limits {
+            torque_margin: Ratio::from_bits(milli_to_q32(limits.torque_margin_permille.into())),
+            max_current_a: current,
+            max_motor_torque: Torque::from_bits(micro_to_q32(limits.motor_torque_unm.into())),
+            max_duty: i16::try_from(limits.duty_permille).map_err(|_| ErrorCode::OutOfRange)?,
+        };
+        supervision.trip_current_a = current.saturating_add(TRIP_ABOVE_LIMIT_A);
+        supervision.position_min = Angle::from_bits(micro_to_q32(limits.position_min_urad.into()));
+        supervision.position_max = Angle::from_bits(micro_to_q32(limits.position_max_urad.into()));
+        self.reconfigure(config, supervision).map(|_| ())
+    }
+
+    fn set_telemetry_rate(&mut self, rate_hz: u16) -> Result<(), ErrorCode> {
+        self.actuator.lock(|a| a.telemetry.set_rate(rate_hz));
+        Ok(())
+    }
+
+    fn heartbeat(&mut self) {
+        self.actuator.lock(|a| a.servo.heartbeat());
+    }
+
+    fn status(&mut self) -> Status {
+        self.actuator.lock(|a| a.status())
+    }
+}
