@@ -11,6 +11,7 @@ mod board;
 mod checks;
 mod cmd;
 mod defmt_log;
+mod e2e;
 mod firmware;
 mod flash;
 mod qemu;
@@ -57,6 +58,13 @@ enum Task {
     },
     /// Run every check: fmt, clippy, host tests, firmware builds, emulated self-tests.
     Test,
+    /// Only the host-link end-to-end test (`cargo xtask test` runs it too): an emulated
+    /// board serving the protocol, driven through the client library.
+    E2e {
+        /// Emulated board.
+        #[arg(long, value_enum, default_value = "qemu-m4")]
+        board: Board,
+    },
     /// Build the Nucleo-F446RE firmware and run it on the board with probe-rs.
     Flash,
     /// Decode a raw defmt log (e.g. QEMU's stdout saved by `vsa --qemu --qemu-log FILE`)
@@ -134,6 +142,25 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             ExitCode::FAILURE
         }),
         Task::Flash => flash::run(),
+        Task::E2e { board } => {
+            setup::ensure_targets()?;
+            setup::ensure_qemu()?;
+            let elf = firmware::build(board)?;
+            let r = e2e::run(board, &elf)?;
+            println!(
+                "{}: move 0.5 rad / 300 ms at 0.3 N·m: overshoot {:.2} %, within {:.2} counts from 400 ms on, {} samples, {} lost; 10 kB garbage in {:.2} s during a move: {} protocol errors, move ended {:.2} counts from its target; command-timeout after {} ms",
+                board.feature(),
+                r.overshoot_pct,
+                r.settled_error_counts,
+                r.samples,
+                r.lost_samples,
+                r.garbage_secs,
+                r.protocol_errors,
+                r.garbage_move_error_counts,
+                r.timeout_ms
+            );
+            Ok(ExitCode::SUCCESS)
+        }
         Task::DecodeLog { elf, log } => {
             let format = defmt_log::LogFormat::from_elf(&elf)?;
             let bytes = std::fs::read(&log)
