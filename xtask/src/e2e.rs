@@ -60,7 +60,7 @@ pub fn run(board: Board, elf: &Path) -> Result<Report> {
         Board::NucleoF446re => bail!("the end-to-end test runs on an emulated board"),
     };
     let mut opts = QemuOptions::new(client_board, elf);
-    opts.firmware_args = vec!["--serve".into(), "--load-mnm".into(), "300".into()];
+    opts.firmware_args = vec!["--load-mnm".into(), "300".into()];
     let (log_tx, log_rx) = mpsc::channel();
     let (qemu, transport) = QemuBoard::spawn(&opts, LogSink::Channel(log_tx))
         .map_err(|e| anyhow!("starting the emulated board: {e}"))?;

@@ -167,6 +167,11 @@ pub fn torque_unm(arg: &str, s: &str) -> CliResult<u32> {
     .map(to_u32)
 }
 
+/// The emulated board's link load in mN·m, within ±2 N·m (the firmware's `--load-mnm`).
+pub fn torque_mnm(arg: &str, s: &str) -> CliResult<i32> {
+    scaled(arg, s, Kind::Torque, 3, -2_000, 2_000).map(to_i32)
+}
+
 /// A fraction in ‰, (0, 1]: `0.85`, `85%` or `850‰`.
 pub fn permille(arg: &str, s: &str) -> CliResult<u16> {
     let t = s.trim();

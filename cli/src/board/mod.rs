@@ -80,6 +80,15 @@ pub struct ConnectArgs {
         help_heading = "Board connection"
     )]
     pub qemu_log: Option<PathBuf>,
+    /// Constant load the emulated board hangs on its link the first time the motor drives,
+    /// e.g. 0.3Nm (|·| ≤ 2 N·m) [default: none]
+    #[arg(
+        long,
+        global = true,
+        value_name = "TORQUE",
+        help_heading = "Board connection"
+    )]
+    pub qemu_load: Option<String>,
     /// Reply timeout, e.g. 2s [default: 1s]
     #[arg(
         long,
@@ -101,6 +110,7 @@ impl ConnectArgs {
             (self.board.is_some(), "--board"),
             (self.elf.is_some(), "--elf"),
             (self.qemu_log.is_some(), "--qemu-log"),
+            (self.qemu_load.is_some(), "--qemu-load"),
             (self.timeout.is_some(), "--timeout"),
         ]
         .into_iter()
@@ -139,6 +149,7 @@ impl ConnectArgs {
                 (self.board.is_some(), "--board"),
                 (self.elf.is_some(), "--elf"),
                 (self.qemu_log.is_some(), "--qemu-log"),
+                (self.qemu_load.is_some(), "--qemu-load"),
             ] {
                 if given {
                     return Err(CliError::usage(name, "only applies to --qemu"));
@@ -163,10 +174,15 @@ impl ConnectArgs {
             Some(b) => b.parse().map_err(|e| CliError::usage("--board", e))?,
             None => Board::QemuM4,
         };
+        let load_mnm = match &self.qemu_load {
+            Some(t) => args::torque_mnm("--qemu-load", t)?,
+            None => 0,
+        };
         Ok(QemuTarget {
             board,
             elf: self.elf.clone(),
             log: self.qemu_log.clone(),
+            load_mnm,
         })
     }
 
@@ -185,6 +201,8 @@ pub struct QemuTarget {
     board: Board,
     elf: Option<PathBuf>,
     log: Option<PathBuf>,
+    /// `--load-mnm` of the served firmware, mN·m.
+    load_mnm: i32,
 }
 
 impl QemuTarget {
@@ -229,7 +247,12 @@ impl QemuTarget {
     pub fn start(&self) -> CliResult<(Adopted, Client)> {
         let elf = self.elf()?;
         let sink = self.sink()?;
-        QemuBoard::start(self.board, &elf, &[], sink)
+        let firmware_args = if self.load_mnm == 0 {
+            Vec::new()
+        } else {
+            vec!["--load-mnm".to_owned(), self.load_mnm.to_string()]
+        };
+        QemuBoard::start(self.board, &elf, &firmware_args, sink)
             .map(|(board, client)| (adopt(board), client))
             .map_err(|e| CliError::runtime(e.to_string()))
     }
