@@ -38,17 +38,7 @@ pub const fn state_name(s: State) -> &'static str {
 /// The fault's name as the firmware logs it (`over-current`, `command-timeout`, …).
 #[must_use]
 pub const fn fault_name(code: FaultCode) -> &'static str {
-    match code {
-        FaultCode::SensorRead => "sensor-read",
-        FaultCode::AdcOutOfRange => "adc-out-of-range",
-        FaultCode::OverCurrent => "over-current",
-        FaultCode::SensorJump => "sensor-jump",
-        FaultCode::SensorStuck => "sensor-stuck",
-        FaultCode::BeamOverload => "beam-overload",
-        FaultCode::PositionLimit => "position-limit",
-        FaultCode::DeadlineMissed => "deadline-missed",
-        FaultCode::CommandTimeout => "command-timeout",
-    }
+    code.name()
 }
 
 /// Unit of a [`FaultRecord::value`] for this fault (see [`FaultCode`]).

@@ -329,6 +329,23 @@ impl FaultCode {
         self as u8
     }
 
+    /// The name the firmware logs (`over-current`, `command-timeout`, …): the supervisor's
+    /// (`model::supervisor::FaultCode::name`, tied by the service crate's tests).
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            FaultCode::SensorRead => "sensor-read",
+            FaultCode::AdcOutOfRange => "adc-out-of-range",
+            FaultCode::OverCurrent => "over-current",
+            FaultCode::SensorJump => "sensor-jump",
+            FaultCode::SensorStuck => "sensor-stuck",
+            FaultCode::BeamOverload => "beam-overload",
+            FaultCode::PositionLimit => "position-limit",
+            FaultCode::DeadlineMissed => "deadline-missed",
+            FaultCode::CommandTimeout => "command-timeout",
+        }
+    }
+
     /// The fault with this code, if any.
     #[must_use]
     pub const fn from_code(code: u8) -> Option<FaultCode> {

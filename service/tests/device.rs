@@ -12,15 +12,8 @@ use service::{
     micro_to_q32, milli_to_q32, q32_to_micro, q32_to_milli, Actuator, Service, TelemetryGate,
 };
 
-/// The host's stand-in for an RTIC shared resource.
-struct Cell(Actuator);
-
-impl rtic_core::Mutex for Cell {
-    type T = Actuator;
-    fn lock<R>(&mut self, f: impl FnOnce(&mut Actuator) -> R) -> R {
-        f(&mut self.0)
-    }
-}
+mod common;
+use common::Cell;
 
 struct Board {
     actuator: Cell,
@@ -92,6 +85,7 @@ fn fault_numbering_is_the_supervisors() {
         assert_eq!(service::wire_fault_code(*m), w, "{}", m.name());
         assert_eq!(*m as u8, w.code(), "{}", m.name());
         assert_eq!(m.bit(), w.bit(), "{}", m.name());
+        assert_eq!(m.name(), w.name());
         assert_eq!(FaultCode::from_code(*m as u8), Some(w));
     }
 }

@@ -11,14 +11,8 @@ use proptest::prelude::*;
 use protocol::{Frame, Gains, Handler, Limits, Reply, Request};
 use service::{Actuator, Service};
 
-struct Cell(Actuator);
-
-impl rtic_core::Mutex for Cell {
-    type T = Actuator;
-    fn lock<R>(&mut self, f: impl FnOnce(&mut Actuator) -> R) -> R {
-        f(&mut self.0)
-    }
-}
+mod common;
+use common::Cell;
 
 /// Any request, fields over their whole types (most are out of range), and in range.
 fn request() -> impl Strategy<Value = Request> {

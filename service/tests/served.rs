@@ -11,14 +11,8 @@ use plant::served::ServedActuator;
 use protocol::{Frame, Handler, Reply, Request, State, TelemetrySample};
 use service::{Actuator, Service};
 
-struct Cell(Actuator);
-
-impl rtic_core::Mutex for Cell {
-    type T = Actuator;
-    fn lock<R>(&mut self, f: impl FnOnce(&mut Actuator) -> R) -> R {
-        f(&mut self.0)
-    }
-}
+mod common;
+use common::Cell;
 
 struct Bench {
     actuator: Cell,

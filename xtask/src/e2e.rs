@@ -52,6 +52,23 @@ pub struct Report {
     pub timeout_ms: i32,
 }
 
+impl std::fmt::Display for Report {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "move 0.5 rad / 300 ms at 0.3 N·m: overshoot {:.2} %, within {:.2} counts from 400 ms on, {} samples at 500 Hz, {} lost; 10 kB garbage in {:.2} s during a move: {} protocol errors, move ended {:.2} counts from its target, no fault; command-timeout after {} ms",
+            self.overshoot_pct,
+            self.settled_error_counts,
+            self.samples,
+            self.lost_samples,
+            self.garbage_secs,
+            self.protocol_errors,
+            self.garbage_move_error_counts,
+            self.timeout_ms
+        )
+    }
+}
+
 /// Runs the test on `board` with `elf` (built with the board's feature).
 pub fn run(board: Board, elf: &Path) -> Result<Report> {
     let client_board = match board {

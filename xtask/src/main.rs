@@ -147,18 +147,7 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             setup::ensure_qemu()?;
             let elf = firmware::build(board)?;
             let r = e2e::run(board, &elf)?;
-            println!(
-                "{}: move 0.5 rad / 300 ms at 0.3 N·m: overshoot {:.2} %, within {:.2} counts from 400 ms on, {} samples, {} lost; 10 kB garbage in {:.2} s during a move: {} protocol errors, move ended {:.2} counts from its target; command-timeout after {} ms",
-                board.feature(),
-                r.overshoot_pct,
-                r.settled_error_counts,
-                r.samples,
-                r.lost_samples,
-                r.garbage_secs,
-                r.protocol_errors,
-                r.garbage_move_error_counts,
-                r.timeout_ms
-            );
+            println!("{}: {r}", board.feature());
             Ok(ExitCode::SUCCESS)
         }
         Task::DecodeLog { elf, log } => {

@@ -117,20 +117,7 @@ pub fn run() -> Result<bool> {
             "[{} host link] end-to-end: configure, enable, move, record, garbage, heartbeat timeout",
             board.feature()
         );
-        let result = e2e::run(*board, elf).map(|r| {
-            println!(
-                "[{} host link] move 0.5 rad / 300 ms at 0.3 N·m: overshoot {:.2} %, within {:.2} counts from 400 ms on, {} samples at 500 Hz, {} lost; 10 kB garbage in {:.2} s during a move: {} protocol errors, move ended {:.2} counts from its target, no fault; command-timeout after {} ms",
-                board.feature(),
-                r.overshoot_pct,
-                r.settled_error_counts,
-                r.samples,
-                r.lost_samples,
-                r.garbage_secs,
-                r.protocol_errors,
-                r.garbage_move_error_counts,
-                r.timeout_ms
-            );
-        });
+        let result = e2e::run(*board, elf).map(|r| println!("[{} host link] {r}", board.feature()));
         tally.record(
             &format!("host link end-to-end on {}", board.feature()),
             result,
