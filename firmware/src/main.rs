@@ -38,6 +38,7 @@ mod board;
 mod control;
 mod report;
 mod run;
+mod stack;
 mod timing;
 
 #[rtic::app(device = crate::board::pac, dispatchers = [CAN1_RX0, CAN1_RX1])]
@@ -71,6 +72,7 @@ mod app {
 
     #[init(local = [queue: Queue<LogItem, LOG_QUEUE> = Queue::new()])]
     fn init(cx: init::Context) -> (Shared, Local) {
+        crate::stack::paint();
         let mut core = cx.core;
         let run: RunConfig = board::run_config();
         let parts = board::init(cx.device, &run);
@@ -149,6 +151,7 @@ mod app {
 
     #[idle(local = [idle_mode])]
     fn idle(cx: idle::Context) -> ! {
+        crate::stack::repaint_after_init();
         loop {
             board::wait_for_interrupt(*cx.local.idle_mode);
         }
