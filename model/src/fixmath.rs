@@ -60,13 +60,21 @@ pub const fn isqrt_round(n: u128) -> u128 {
 pub const fn icbrt(n: u128) -> (u128, u128) {
     let mut x = n;
     let mut y: u128 = 0;
+    // y², kept up to date with shifts and adds (no 128-bit multiply per step).
+    let mut y2: u128 = 0;
     let mut s: i32 = 126;
+    // While y = 0 a step only tests x >> s ≥ 1: skip the steps where that fails.
+    while s > 0 && (x >> s) == 0 {
+        s -= 3;
+    }
     while s >= 0 {
         y <<= 1;
-        // y < 2^43, so b < 2^88.
-        let b = 3 * y * (y + 1) + 1;
+        y2 <<= 2;
+        // y < 2^43, so b = 3·y·(y + 1) + 1 < 2^88.
+        let b = 3 * (y2 + y) + 1;
         if (x >> s) >= b {
             x -= b << s;
+            y2 += 2 * y + 1;
             y += 1;
         }
         s -= 3;
@@ -129,26 +137,27 @@ pub(crate) const fn div_normalised(a: u64, d: u64) -> (u128, u64) {
         let num = (u[j + 4] << 16) | u[j + 3];
         let mut qhat = num / v[3];
         let mut rhat = num - qhat * v[3];
-        while qhat >= B || (qhat as u64) * (v[2] as u64) > (((rhat as u64) << 16) | u[j + 2] as u64)
-        {
+        // qhat < 2¹⁶ and rhat < 2¹⁶ when the product test runs: it fits 32 bits.
+        while qhat >= B || qhat * v[2] > ((rhat << 16) | u[j + 2]) {
             qhat -= 1;
             rhat += v[3];
             if rhat >= B {
                 break;
             }
         }
-        // Multiply and subtract: u[j..=j+4] −= qhat·v.
-        let mut borrow: i64 = 0;
+        // Multiply and subtract: u[j..=j+4] −= qhat·v (16-bit digits, 32-bit arithmetic:
+        // products < 2³², the borrow ≤ 2¹⁶ + 1).
+        let mut borrow: i32 = 0;
         let mut i = 0;
         while i < 4 {
-            let p = qhat as i64 * v[i] as i64;
-            let t = u[i + j] as i64 - borrow - (p & M as i64);
-            u[i + j] = (t & M as i64) as u32;
-            borrow = (p >> 16) - (t >> 16);
+            let p = qhat * v[i];
+            let t = u[i + j] as i32 - borrow - (p & M) as i32;
+            u[i + j] = t as u32 & M;
+            borrow = (p >> 16) as i32 - (t >> 16);
             i += 1;
         }
-        let t = u[j + 4] as i64 - borrow;
-        u[j + 4] = (t & M as i64) as u32;
+        let t = u[j + 4] as i32 - borrow;
+        u[j + 4] = t as u32 & M;
         if t < 0 {
             // qhat was one too large: add d back.
             qhat -= 1;
@@ -522,6 +531,40 @@ mod tests {
             let (y, r) = isqrt(n);
             assert!(y * y <= n && r == n - y * y);
             assert!((y + 1).checked_mul(y + 1).is_none_or(|s| s > n));
+        }
+    }
+
+    /// The plain digit-by-digit cube root (a 128-bit multiply per step), as `icbrt` was.
+    fn icbrt_reference(n: u128) -> (u128, u128) {
+        let mut x = n;
+        let mut y: u128 = 0;
+        let mut s: i32 = 126;
+        while s >= 0 {
+            y <<= 1;
+            let b = 3 * y * (y + 1) + 1;
+            if (x >> s) >= b {
+                x -= b << s;
+                y += 1;
+            }
+            s -= 3;
+        }
+        (y, x)
+    }
+
+    #[test]
+    fn icbrt_is_the_reference_everywhere() {
+        let mut x: u64 = 0x853C_49E6_748F_EA9B;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        for i in 0..300_000u32 {
+            let n = (u128::from(next()) << 64 | u128::from(next())) >> (i % 128);
+            for n in [n, n.saturating_add(1), n.saturating_sub(1)] {
+                assert_eq!(icbrt(n), icbrt_reference(n), "{n}");
+            }
         }
     }
 
