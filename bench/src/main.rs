@@ -316,9 +316,9 @@ mod suite {
         cap.log("capacity_check");
         tel.log("telemetry");
         defmt::println!(
-            "bench f32 port vs fixed point, each in its own closed loop: {=u32} ticks, |duty difference| mean {=u64}/1000 max {=i32} permille, link angle difference max {=u32} urad, {=u32} faults",
+            "bench f32 port vs fixed point, each in its own closed loop: {=u32} ticks, |duty difference| mean {=f32} max {=i32} permille, link angle difference max {=u32} urad, {=u32} faults",
             ticks,
-            sum_duty_diff * 1000 / u64::from(ticks.max(1)),
+            sum_duty_diff as f32 / ticks.max(1) as f32,
             worst_duty_diff,
             worst_angle_urad,
             faults

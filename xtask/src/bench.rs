@@ -326,10 +326,10 @@ pub fn run() -> Result<()> {
     for (i, board) in boards.iter().enumerate() {
         let mut b = Map::new();
         for (name, r) in &benches[i].results {
-            b.insert(format!("{name}_insns_mean"), json!(r.mean.round()));
-            b.insert(format!("{name}_insns_max"), json!(r.max.round()));
+            b.insert(format!("{name}_insns_mean"), json!(r.mean.round() as u64));
+            b.insert(format!("{name}_insns_max"), json!(r.max.round() as u64));
         }
-        let get = |k: &str| benches[i].results.get(k).map(|r| r.max.round());
+        let get = |k: &str| benches[i].results.get(k).map(|r| r.max.round() as u64);
         b.insert("stiffness_insns".into(), json!(get("stiffness")));
         b.insert("inverse_insns".into(), json!(get("inverse")));
         b.insert("flash_bytes".into(), json!(controls[i].flash()));
