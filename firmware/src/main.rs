@@ -48,6 +48,7 @@ mod control;
 mod link;
 mod report;
 mod run;
+mod stack;
 mod timing;
 
 #[rtic::app(device = crate::board::pac, dispatchers = [CAN1_RX0, CAN1_RX1])]
@@ -96,6 +97,7 @@ mod app {
         telemetry_queue: Queue<Sample, TELEMETRY_QUEUE> = Queue::new(),
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
+        crate::stack::paint();
         let mut core = cx.core;
         let run: RunConfig = board::run_config();
         let parts = board::init(cx.device, &run);
@@ -219,6 +221,7 @@ mod app {
 
     #[idle(local = [idle_mode])]
     fn idle(cx: idle::Context) -> ! {
+        crate::stack::repaint_after_init();
         loop {
             board::wait_for_interrupt(*cx.local.idle_mode);
         }

@@ -245,6 +245,14 @@ mod scenario_log {
                     per(u64::from(world_mean))
                 );
             }
+            let st = crate::stack::high_water();
+            defmt::info!(
+                "stack: high-water {=u32} bytes of {=u32} bytes (boot {=u32}, running {=u32})",
+                st.peak,
+                st.size,
+                st.boot,
+                st.running
+            );
             let fault = s.first_fault.map_or("none", |(c, _)| c.name());
             let fault_tick = s.first_fault.map_or(0, |(_, t)| t);
             let passed_scenario = s.passed();

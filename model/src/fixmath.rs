@@ -60,13 +60,21 @@ pub const fn isqrt_round(n: u128) -> u128 {
 pub const fn icbrt(n: u128) -> (u128, u128) {
     let mut x = n;
     let mut y: u128 = 0;
+    // y², kept up to date with shifts and adds (no 128-bit multiply per step).
+    let mut y2: u128 = 0;
     let mut s: i32 = 126;
+    // While y = 0 a step only tests x >> s ≥ 1: skip the steps where that fails.
+    while s > 0 && (x >> s) == 0 {
+        s -= 3;
+    }
     while s >= 0 {
         y <<= 1;
-        // y < 2^43, so b < 2^88.
-        let b = 3 * y * (y + 1) + 1;
+        y2 <<= 2;
+        // y < 2^43, so b = 3·y·(y + 1) + 1 < 2^88.
+        let b = 3 * (y2 + y) + 1;
         if (x >> s) >= b {
             x -= b << s;
+            y2 += 2 * y + 1;
             y += 1;
         }
         s -= 3;
@@ -85,6 +93,88 @@ pub const fn icbrt_round(n: u128) -> u128 {
     } else {
         y
     }
+}
+
+/// `(⌊a·2⁶⁴/d⌋, a·2⁶⁴ mod d)` for normalised `a`, `d` (top bit set): the quotient of
+/// [`Scale::div`], exactly as `((a as u128) << 64) / d` and `% d`.
+///
+/// A 32-bit core has no 128-bit divide: the generic `u128` division is a library routine
+/// of thousands of instructions on a Cortex-M3. This is Knuth's algorithm D (TAOCP 4.3.1;
+/// Hacker's Delight `divmnu`) in 16-bit digits, so that every step is one 32/32-bit
+/// hardware divide (`UDIV`) and 16×16-bit products: the top quotient bit is `a ≥ d`, then
+/// four quotient digits of `(a mod d)·2⁶⁴ / d`. `d` is already normalised (its top digit
+/// is ≥ 2¹⁵), so no shift is needed.
+pub(crate) const fn div_normalised(a: u64, d: u64) -> (u128, u64) {
+    const B: u32 = 1 << 16;
+    const M: u32 = B - 1;
+    let top = a >= d;
+    let a = if top { a - d } else { a }; // now a < d
+    let v = [
+        (d & 0xFFFF) as u32,
+        ((d >> 16) & 0xFFFF) as u32,
+        ((d >> 32) & 0xFFFF) as u32,
+        (d >> 48) as u32,
+    ];
+    // Dividend a·2⁶⁴ in 16-bit digits, least significant first, with one digit of headroom.
+    let mut u = [
+        0,
+        0,
+        0,
+        0,
+        (a & 0xFFFF) as u32,
+        ((a >> 16) & 0xFFFF) as u32,
+        ((a >> 32) & 0xFFFF) as u32,
+        (a >> 48) as u32,
+        0,
+    ];
+    let mut q: u64 = 0;
+    let mut j: usize = 4;
+    while j > 0 {
+        j -= 1;
+        // Estimate the digit from the top two digits of the remainder and the top digit of
+        // d; it is at most 2 too large, and the test against the second digit of d corrects
+        // all but (rarely) one of that.
+        let num = (u[j + 4] << 16) | u[j + 3];
+        let mut qhat = num / v[3];
+        let mut rhat = num - qhat * v[3];
+        // qhat < 2¹⁶ and rhat < 2¹⁶ when the product test runs: it fits 32 bits.
+        while qhat >= B || qhat * v[2] > ((rhat << 16) | u[j + 2]) {
+            qhat -= 1;
+            rhat += v[3];
+            if rhat >= B {
+                break;
+            }
+        }
+        // Multiply and subtract: u[j..=j+4] −= qhat·v (16-bit digits, 32-bit arithmetic:
+        // products < 2³², the borrow ≤ 2¹⁶ + 1).
+        let mut borrow: i32 = 0;
+        let mut i = 0;
+        while i < 4 {
+            let p = qhat * v[i];
+            let t = u[i + j] as i32 - borrow - (p & M) as i32;
+            u[i + j] = t as u32 & M;
+            borrow = (p >> 16) as i32 - (t >> 16);
+            i += 1;
+        }
+        let t = u[j + 4] as i32 - borrow;
+        u[j + 4] = t as u32 & M;
+        if t < 0 {
+            // qhat was one too large: add d back.
+            qhat -= 1;
+            let mut carry: u32 = 0;
+            let mut i = 0;
+            while i < 4 {
+                let t = u[i + j] + v[i] + carry;
+                u[i + j] = t & M;
+                carry = t >> 16;
+                i += 1;
+            }
+            u[j + 4] = (u[j + 4] + carry) & M;
+        }
+        q |= (qhat as u64) << (16 * j);
+    }
+    let r = u[0] as u64 | (u[1] as u64) << 16 | (u[2] as u64) << 32 | (u[3] as u64) << 48;
+    (((top as u128) << 64) | q as u128, r)
 }
 
 /// Positive number `m·2^e`; `m = 0` is zero, otherwise `m ∈ [2⁶³, 2⁶⁴)` (normalised).
@@ -173,12 +263,10 @@ impl Scale {
         if self.m == 0 {
             return Some(Self::ZERO);
         }
-        let n = (self.m as u128) << 64;
-        let d = o.m as u128;
-        let q = n / d; // in (2^63, 2^65)
-        let r = n % d;
+        // q = ⌊m_a·2⁶⁴ / m_b⌋ ∈ (2⁶³, 2⁶⁵) and its remainder, exactly.
+        let (q, r) = div_normalised(self.m, o.m);
         // One extra bit that says "remainder ≥ half": from_u128 then rounds to nearest.
-        let q2 = (q << 1) | ((2 * r >= d) as u128);
+        let q2 = (q << 1) | ((r >= o.m - r) as u128);
         Self::from_u128(q2, self.e as i64 - o.e as i64 - 65)
     }
 
@@ -376,6 +464,46 @@ pub(crate) const FRAC_1_TAU: Scale =
 mod tests {
     use super::*;
 
+    #[test]
+    fn div_normalised_is_the_u128_division() {
+        let top = 1u64 << 63;
+        let mut cases = vec![
+            (top, top),
+            (u64::MAX, top),
+            (top, u64::MAX),
+            (u64::MAX, u64::MAX),
+            (u64::MAX - 1, u64::MAX),
+            (top + 1, top),
+            (top, top + 1),
+            (0xFFFF_0000_0000_0000, 0x8000_0000_0000_FFFF),
+            (0x8000_FFFF_FFFF_FFFF, 0xFFFF_FFFF_0000_0001),
+        ];
+        let mut x: u64 = 0x2545_F491_4F6C_DD1D;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        for _ in 0..1_000_000 {
+            let (a, d) = (next() | top, next() | top);
+            cases.push((a, d));
+            // Digit patterns that exercise the estimate's corrections and the add-back.
+            let mask = next();
+            cases.push((a | mask & 0xFFFF_0000_FFFF_0000, d | 0x0000_FFFF_0000_0000));
+            cases.push((a, (d & 0xFFFF_FFFF_FFFF_0000) | 0xFFFF));
+            cases.push((
+                a & 0xFFFF_FFFF_0000_0000 | top,
+                d & 0xFFFF_0000_0000_0000 | top,
+            ));
+        }
+        for (a, d) in cases {
+            let n = u128::from(a) << 64;
+            let want = (n / u128::from(d), (n % u128::from(d)) as u64);
+            assert_eq!(div_normalised(a, d), want, "{a:#x} / {d:#x}");
+        }
+    }
+
     fn f(s: Scale) -> f64 {
         s.m as f64 * 2f64.powi(s.e)
     }
@@ -403,6 +531,40 @@ mod tests {
             let (y, r) = isqrt(n);
             assert!(y * y <= n && r == n - y * y);
             assert!((y + 1).checked_mul(y + 1).is_none_or(|s| s > n));
+        }
+    }
+
+    /// The plain digit-by-digit cube root (a 128-bit multiply per step), as `icbrt` was.
+    fn icbrt_reference(n: u128) -> (u128, u128) {
+        let mut x = n;
+        let mut y: u128 = 0;
+        let mut s: i32 = 126;
+        while s >= 0 {
+            y <<= 1;
+            let b = 3 * y * (y + 1) + 1;
+            if (x >> s) >= b {
+                x -= b << s;
+                y += 1;
+            }
+            s -= 3;
+        }
+        (y, x)
+    }
+
+    #[test]
+    fn icbrt_is_the_reference_everywhere() {
+        let mut x: u64 = 0x853C_49E6_748F_EA9B;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        for i in 0..300_000u32 {
+            let n = (u128::from(next()) << 64 | u128::from(next())) >> (i % 128);
+            for n in [n, n.saturating_add(1), n.saturating_sub(1)] {
+                assert_eq!(icbrt(n), icbrt_reference(n), "{n}");
+            }
         }
     }
 

@@ -6,7 +6,9 @@
 //! - `cargo xtask test`: formatting, clippy (host and every board), host tests, release
 //!   builds of every board, and each emulated board's self-test.
 //! - `cargo xtask flash`: the Nucleo-F446RE firmware through probe-rs.
+//! - `cargo xtask bench`: instruction counts (fixed point vs f32), footprint and stack.
 
+mod bench;
 mod board;
 mod checks;
 mod cmd;
@@ -75,6 +77,8 @@ enum Task {
         /// The raw defmt bytes.
         log: PathBuf,
     },
+    /// Instruction counts per call (fixed point vs f32), footprint and stack of each board.
+    Bench,
     /// Cargo runner for thumb targets: run an ELF on an emulated board.
     #[command(hide = true)]
     QemuRunner {
@@ -163,6 +167,7 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             }
             Ok(ExitCode::SUCCESS)
         }
+        Task::Bench => bench::run().map(|()| ExitCode::SUCCESS),
         Task::QemuRunner { board, elf, args } => {
             setup::ensure_qemu()?;
             Ok(emulate(board, &elf, &args, test::wall_limit(3600))?.0)

@@ -24,12 +24,25 @@ pub struct RunOutcome {
     pub malformed_frames: usize,
 }
 
-/// Runs `elf` on `board`'s QEMU machine with `args` on the semihosting command line.
-/// Each decoded line is passed to `on_line` as soon as it arrives.
+/// Runs `elf` on `board`'s QEMU machine with `args` on the semihosting command line,
+/// at `-icount shift=`[`ICOUNT_SHIFT`]. Each decoded line is passed to `on_line` as soon
+/// as it arrives.
 pub fn run(
     board: Board,
     elf: &Path,
     args: &[String],
+    wall_limit: Duration,
+    on_line: impl FnMut(&str),
+) -> Result<RunOutcome> {
+    run_with_shift(board, elf, args, ICOUNT_SHIFT, wall_limit, on_line)
+}
+
+/// [`run`] at `-icount shift=shift` (one instruction = 2^shift ns of virtual time).
+pub fn run_with_shift(
+    board: Board,
+    elf: &Path,
+    args: &[String],
+    shift: u32,
     wall_limit: Duration,
     mut on_line: impl FnMut(&str),
 ) -> Result<RunOutcome> {
@@ -49,7 +62,7 @@ pub fn run(
         .args(["-machine", machine, "-display", "none", "-monitor", "none"])
         .args(["-serial", "null"])
         .args(["-semihosting-config", &semihosting])
-        .args(["-icount", &format!("shift={ICOUNT_SHIFT},sleep=off")])
+        .args(["-icount", &format!("shift={shift},sleep=off")])
         .arg("-kernel")
         .arg(elf)
         .stdin(Stdio::null())

@@ -8,7 +8,7 @@ use std::time::Duration;
 use crate::board::Board;
 use crate::cmd::{cargo, describe};
 use crate::e2e;
-use crate::{checks, firmware, qemu, scenarios, setup};
+use crate::{bench, checks, firmware, qemu, scenarios, setup};
 use plant::scenario::ScenarioId;
 
 /// Control tick at which the panic-handler test panics on purpose.
@@ -74,6 +74,18 @@ pub fn run() -> Result<bool> {
         );
     }
 
+    for board in [Board::QemuM4, Board::QemuM3] {
+        let mut clippy = cargo();
+        clippy
+            .args(["clippy", "--release", "--package", "vsa-bench"])
+            .args(board.cargo_args())
+            .args(["--", "-D", "warnings"]);
+        tally.record(
+            &format!("clippy (bench, {})", board.feature()),
+            step(clippy),
+        );
+    }
+
     host_tests(&mut tally);
 
     let mut elfs = Vec::new();
@@ -97,6 +109,15 @@ pub fn run() -> Result<bool> {
             .and_then(|outcome| scenarios::check(id, &outcome));
             tally.record(&format!("{} on {}", id.name(), board.feature()), result);
         }
+    }
+
+    // The benchmark firmware runs and reports every benchmark; the control-only image
+    // builds (`cargo xtask bench` has the full report).
+    for board in [Board::QemuM4, Board::QemuM3] {
+        let result = bench::build(board, "vsa-control-only")
+            .and_then(|_| bench::run_bench(board, true))
+            .map(|_| ());
+        tally.record(&format!("benchmarks on {}", board.feature()), result);
     }
 
     for (board, elf) in elfs.iter().filter(|(b, _)| b.qemu_machine().is_some()) {

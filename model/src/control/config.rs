@@ -397,13 +397,21 @@ impl Schedule {
         let m = &cfg.motor;
         let one = I32F32::ONE;
         if !(in_range(m.supply_v, one, I32F32::from_num(100))
-            && in_range(m.resistance_ohm, I32F32::lit("0.1"), I32F32::from_num(1000))
+            && in_range(
+                m.resistance_ohm,
+                const { I32F32::lit("0.1") },
+                I32F32::from_num(1000),
+            )
             && in_range(
                 m.torque_constant,
-                I32F32::lit("0.01"),
+                const { I32F32::lit("0.01") },
                 I32F32::from_num(100),
             )
-            && in_range(m.back_emf, I32F32::lit("0.01"), I32F32::from_num(100))
+            && in_range(
+                m.back_emf,
+                const { I32F32::lit("0.01") },
+                I32F32::from_num(100),
+            )
             && in_range(m.rotor_inertia.get(), one, I32F32::from_num(1_000_000))
             && in_range(m.viscous, I32F32::ZERO, I32F32::from_num(10)))
         {

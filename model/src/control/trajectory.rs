@@ -116,8 +116,27 @@ pub struct Reference {
     pub acceleration_q16: i32,
 }
 
+/// `(a·b) >> 32` (rounded toward −∞), saturated to `i64`: the Q32 product.
+///
+/// The Horner chains multiply by τ ∈ [0, 1] (Q32, so `b` < 2³² but for the last ticks of
+/// very long moves): then `b` is one 32-bit word and the product is
+/// `a_hi·b + ((a_lo·b) >> 32)` exactly (`a = a_hi·2³² + a_lo`, `a_lo` unsigned), two
+/// 32×32→64 multiplies instead of a 128-bit product on a 32-bit core. Same result as the
+/// 128-bit path, bit for bit.
 #[inline]
 fn mul_q32(a: i64, b: i64) -> i64 {
+    if let Ok(t) = u32::try_from(b) {
+        let hi = (a >> 32) * i64::from(t); // |a_hi·t| < 2⁶³
+        let lo = ((a as u32 as u64 * u64::from(t)) >> 32) as i64; // < 2³²
+                                                                  // lo ≥ 0, so only an upward overflow is possible.
+        return hi.checked_add(lo).unwrap_or(i64::MAX);
+    }
+    mul_q32_wide(a, b)
+}
+
+/// [`mul_q32`] for any `b`, through the 128-bit product.
+#[inline(never)]
+fn mul_q32_wide(a: i64, b: i64) -> i64 {
     let p = (i128::from(a) * i128::from(b)) >> 32;
     if p > i128::from(i64::MAX) {
         i64::MAX
@@ -397,6 +416,47 @@ mod tests {
 
     fn q16(v: i32) -> f64 {
         f64::from(v) / 65536.0
+    }
+
+    #[test]
+    fn mul_q32_fast_path_is_the_128_bit_product() {
+        let edges = [
+            0i64,
+            1,
+            -1,
+            i64::MAX,
+            i64::MIN,
+            i64::MAX - 1,
+            i64::MIN + 1,
+            1 << 32,
+            -(1 << 32),
+            (1 << 32) - 1,
+            u32::MAX as i64,
+            1 << 31,
+            -(1 << 31),
+        ];
+        let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x as i64
+        };
+        let mut cases = Vec::new();
+        for &a in &edges {
+            for &b in &edges {
+                cases.push((a, b));
+            }
+        }
+        for _ in 0..200_000 {
+            let (a, b) = (next(), next());
+            cases.push((a, b));
+            cases.push((a, b & 0xFFFF_FFFF));
+            cases.push((a >> (b as u64 % 64), (b as u64 % (1 << 33)) as i64));
+        }
+        for (a, b) in cases {
+            assert_eq!(mul_q32(a, b), mul_q32_wide(a, b), "{a} × {b}");
+        }
     }
 
     #[test]

@@ -1,0 +1,61 @@
+//! The emulated boards the bench binaries run on (as `firmware/src/board/qemu.rs`): the
+//! device crate RTIC binds to, the fixed core clock, defmt over semihosting, the exit
+//! status and the panic handler.
+
+use core::sync::atomic::{AtomicBool, Ordering};
+use defmt_semihosting as _;
+
+#[cfg(not(any(feature = "qemu-m4", feature = "qemu-m3")))]
+compile_error!("no board selected: build with `qemu-m4` (default) or `qemu-m3`");
+
+#[cfg(all(feature = "qemu-m4", feature = "qemu-m3"))]
+compile_error!("two boards selected: add `--no-default-features` when choosing `qemu-m3`");
+
+/// The device crate (STM32F205).
+#[cfg(feature = "qemu-m3")]
+pub use stm32f2::stm32f215 as pac;
+/// The device crate (STM32F405).
+#[cfg(feature = "qemu-m4")]
+pub use stm32f4::stm32f405 as pac;
+
+/// Board name as logged.
+#[cfg(feature = "qemu-m4")]
+pub const NAME: &str = "qemu-m4";
+/// Board name as logged.
+#[cfg(feature = "qemu-m3")]
+pub const NAME: &str = "qemu-m3";
+
+/// Core clock of the emulated SoC, Hz (fixed by the QEMU machine; SysTick counts it).
+#[cfg(feature = "qemu-m4")]
+pub const SYSCLK_HZ: u32 = 168_000_000;
+/// Core clock of the emulated SoC, Hz (fixed by the QEMU machine; SysTick counts it).
+#[cfg(feature = "qemu-m3")]
+pub const SYSCLK_HZ: u32 = 120_000_000;
+
+/// Ends the emulation with status 0 (`passed`) or 1.
+pub fn exit(passed: bool) -> ! {
+    semihosting::process::exit(if passed { 0 } else { 1 })
+}
+
+/// Logs the panic once, then makes QEMU exit with failure.
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    static PANICKING: AtomicBool = AtomicBool::new(false);
+    cortex_m::interrupt::disable();
+    if !PANICKING.swap(true, Ordering::Relaxed) {
+        let (file, line) = info.location().map_or(("?", 0), |l| (l.file(), l.line()));
+        defmt::error!(
+            "panic: {} ({=str}:{=u32})",
+            defmt::Display2Format(&info.message()),
+            file,
+            line
+        );
+    }
+    exit(false)
+}
+
+/// defmt's own `panic!`/`unwrap!` end up here.
+#[defmt::panic_handler]
+fn defmt_panic() -> ! {
+    exit(false)
+}

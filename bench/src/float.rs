@@ -1,0 +1,912 @@
+//! An f32 port of the per-tick control step and of k(L) / L(k), kept **only** to compare
+//! instruction counts with the fixed-point `model` (issue 7). Nothing in the firmware uses
+//! it.
+//!
+//! It mirrors the structure of the fixed-point code statement by statement, with the same
+//! per-tick work and the same branches, in SI units and f32:
+//!
+//! * [`FloatController::step`] is `model::control::Controller::step` (encoder unwrapping,
+//!   back-EMF observer, blended torque estimate, reference, feed-forward, free-play
+//!   compensation, PID, current/duty window, braking governor, anti-windup);
+//! * [`FloatSupervisor::check`] is `model::supervisor::Supervisor::check` (every check, in
+//!   the same order, with the same latch);
+//! * [`FloatServo::tick`] is `model::servo::Servo::tick` (controller, supervisor, enable
+//!   state, bridge demand);
+//! * [`FloatTrajectory`] is `model::control::Trajectory` (hold, raw step, minimum-jerk
+//!   quintic, sine with `libm` sin/cos);
+//! * [`FloatBeam::stiffness`] is k(L) = n·3·E·I·R²/L³ (paper eq. 4, Euler–Bernoulli) and
+//!   [`FloatBeam::clutch_length`] its inverse L(k) = (n·3·E·I·R²/k)^(1/3) (`libm::cbrtf`).
+//!
+//! The per-tick constants are derived from the fixed-point [`Schedule`] and the [`Config`]
+//! when the configuration is set ([`FloatSchedule::new`]; configuration-time maths, not
+//! timed). Units: angles rad, velocities rad/s, accelerations rad/s², currents A, torques
+//! N·m, duty ‰, lengths mm, stiffness N·m/rad.
+//!
+//! Agreement with the fixed-point code is tested on the host (`host-tests/tests/
+//! float_mirror.rs`): k(L) and L(k) within 1e-5 relative; the same first ticks and the
+//! same faults on the same readings; in closed loop with the simulated actuator, the link
+//! within one encoder count of the fixed-point run at every tick. The duties are not
+//! identical: the fixed-point deflection feed-forward works on a Q16 deflection (1.5e-5
+//! rad) through a gain of 1.6e5 ‰/rad, so it moves in steps of 2.5 ‰ where f32 does not. On the Cortex-M3 every f32 operation here is a soft-float library call; on
+//! the Cortex-M4F the basic operations are FPU instructions.
+
+use core::f32::consts::PI;
+
+use model::control::{encoder_delta, Command, Config, Schedule};
+use model::servo::{BridgeDemand, TickInput};
+use model::supervisor::{Fault, FaultCode, FaultSet, Supervisor};
+use model::{Design, Length, Stiffness};
+
+/// Encoder counts per revolution.
+const ENCODER_COUNTS: i32 = 4096;
+/// Pot counts over its 300° span.
+const POT_COUNTS: i32 = 1024;
+/// Current ADC zero.
+const ADC_MID: i32 = 2048;
+/// Half an encoder count, rad.
+const HALF_COUNT: f32 = PI / 4096.0;
+/// One encoder count per tick as a velocity, rad/s.
+const COUNT_PER_TICK: f32 = 2.0 * PI / 4096.0 * 1000.0;
+/// One pot count, rad (300°/1024).
+const POT_COUNT: f32 = 5.0 * PI / 3.0 / 1024.0;
+/// Current ADC counts per ampere.
+const ADC_COUNTS_PER_A: f32 = 1024.0;
+/// Control period, s.
+const DT: f32 = 1e-3;
+
+/// f32 of a fixed-point value given as its raw bits and fractional bit count
+/// (configuration time only).
+fn fx(bits: i128, frac: i32) -> f32 {
+    // Via f64: 53 bits are plenty for the conversion, then one rounding to f32.
+    libm::ldexp(bits as f64, -frac) as f32
+}
+
+fn i32f32(bits: i64) -> f32 {
+    fx(i128::from(bits), 32)
+}
+
+/// k(L) and L(k) of the Euler–Bernoulli model in f32.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FloatBeam {
+    /// C = n·3·E·I·R²/10³, N·m·mm³ (k = C/L³ with L in mm).
+    c: f32,
+}
+
+impl FloatBeam {
+    /// The constant of `design` (computed in f64 from the design parameters, rounded once).
+    #[must_use]
+    pub fn new(design: &Design) -> FloatBeam {
+        let p = design.params();
+        let f = |bits: i64| bits as f64 / 4_294_967_296.0;
+        let n = f64::from(p.beams);
+        let r = f(p.beam_radius.to_bits());
+        let pr = f(p.pitch_radius.to_bits());
+        let e = f(p.youngs_modulus.to_bits()); // MPa = N/mm²
+        let i = core::f64::consts::PI * r * r * r * r / 4.0; // mm⁴
+        FloatBeam {
+            c: (n * 3.0 * e * i * pr * pr / 1e3) as f32,
+        }
+    }
+
+    /// Joint stiffness k = C/L³, N·m/rad, for L in mm. No domain check (the caller's
+    /// L is in (0, l]).
+    #[inline(never)]
+    #[must_use]
+    pub fn stiffness(&self, len_mm: f32) -> f32 {
+        self.c / (len_mm * len_mm * len_mm)
+    }
+
+    /// Clutch length L = (C/k)^(1/3), mm, for k in N·m/rad (k > 0).
+    #[inline(never)]
+    #[must_use]
+    pub fn clutch_length(&self, k: f32) -> f32 {
+        libm::cbrtf(self.c / k)
+    }
+}
+
+/// The per-tick constants in f32 (the counterpart of the fixed-point `Schedule`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FloatSchedule {
+    kp: f32,
+    ki_dt: f32,
+    kp_dt: f32,
+    two_a_brake: f32,
+    brake_min_w: f32,
+    int_band: f32,
+    w_deadband: f32,
+    kd: f32,
+    alpha: f32,
+    ff_vel: f32,
+    ff_acc: f32,
+    ff_defl: f32,
+    j_link: f32,
+    inv_k: f32,
+    k: f32,
+    free_play: f32,
+    fp_slope: f32,
+    torque_per_duty: f32,
+    duty_per_amp: f32,
+    w_per_duty: f32,
+    w_per_count: f32,
+    duty_per_w: f32,
+    kt: f32,
+    jg_fs: f32,
+    bv: f32,
+    w_defl: f32,
+    i_lim: f32,
+    i_lim_from_beams: bool,
+    tau_lim: f32,
+    duty_lim: f32,
+    pot_center: i32,
+    encoder_zero: i32,
+}
+
+impl FloatSchedule {
+    /// The f32 constants for `config`, whose fixed-point schedule is `sched`: stiffness,
+    /// bandwidth, PID gains, limits, blend weight and free play are taken from `sched`,
+    /// the motor constants from `config` (the same formulas as `Schedule::new`).
+    #[must_use]
+    pub fn new(sched: &Schedule, config: &Config) -> FloatSchedule {
+        let m = &config.motor;
+        let v_s = i32f32(m.supply_v.to_bits());
+        let r = i32f32(m.resistance_ohm.to_bits());
+        let kt = i32f32(m.torque_constant.to_bits());
+        let ke = i32f32(m.back_emf.to_bits());
+        let bv = i32f32(m.viscous.to_bits());
+        let j_g = i32f32(m.rotor_inertia.to_bits()) * 1e-6; // kg·mm² → kg·m²
+        let j_l = i32f32(config.link_inertia.to_bits()) * 1e-6;
+        let j = j_g + j_l;
+        let dpv = 1000.0 / v_s;
+        let c = kt / r;
+        let k = fx(sched.stiffness().to_bits(), 64);
+        let w_c = fx(i128::from(sched.bandwidth().to_bits()), 32);
+        let g = sched.gains();
+        let kp = i32f32(g.kp.to_bits());
+        let ki = i32f32(g.ki.to_bits());
+        let kd = i32f32(g.kd.to_bits());
+        let tau_f = 1.0 / (4.0 * w_c);
+        let (i_lim, from_beams) = sched.current_limit();
+        let i_lim = i32f32(i_lim.to_bits());
+        let free_play = i32f32(sched.free_play().to_bits());
+        let max_duty = f32::from(config.limits.max_duty);
+        FloatSchedule {
+            kp,
+            ki_dt: ki * DT,
+            kp_dt: kp * DT,
+            two_a_brake: 0.5 * kt * i_lim * 2.0 / j,
+            brake_min_w: 0.5,
+            int_band: if kp > 0.0 { max_duty / kp } else { f32::MAX },
+            w_deadband: r * 3.0 / (ke * 2.0 * ADC_COUNTS_PER_A),
+            kd,
+            alpha: DT / (tau_f + DT),
+            ff_vel: dpv * (ke + r * bv / kt),
+            ff_acc: dpv * r * j / kt,
+            ff_defl: dpv * ke * 1000.0,
+            j_link: j_l,
+            inv_k: 1.0 / k,
+            k,
+            free_play,
+            fp_slope: free_play / 0.1,
+            torque_per_duty: c / dpv,
+            duty_per_amp: dpv * r,
+            w_per_duty: v_s / 1000.0 / ke,
+            w_per_count: r / ke / ADC_COUNTS_PER_A,
+            duty_per_w: dpv * ke,
+            kt,
+            jg_fs: j_g * 1000.0,
+            bv,
+            w_defl: i32f32(sched.deflection_weight().to_bits()),
+            i_lim,
+            i_lim_from_beams: from_beams,
+            tau_lim: i32f32(sched.torque_limit().to_bits()),
+            duty_lim: max_duty,
+            pot_center: i32::from(config.sensors.pot_center),
+            encoder_zero: i32::from(config.sensors.encoder_zero),
+        }
+    }
+}
+
+/// One tick of reference, f32.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FloatReference {
+    /// r, rad.
+    pub position: f32,
+    /// ṙ, rad/s.
+    pub velocity: f32,
+    /// r̈, rad/s².
+    pub acceleration: f32,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Mode {
+    Hold,
+    Quintic {
+        p0: f32,
+        target: f32,
+        c: [f32; 5],
+        dv: [f32; 5],
+        da: [f32; 4],
+        tau: f32,
+        dtau: f32,
+        left: u32,
+    },
+    Sine {
+        center: f32,
+        amp: f32,
+        vel_amp: f32,
+        acc_amp: f32,
+        phase: f32,
+        dphase: f32,
+    },
+}
+
+/// The reference generator in f32 (hold, raw step, minimum-jerk move, sine).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FloatTrajectory {
+    mode: Mode,
+    pos: f32,
+    vel: f32,
+    acc: f32,
+}
+
+impl FloatTrajectory {
+    /// Holding at `position` (rad).
+    #[must_use]
+    pub const fn new(position: f32) -> Self {
+        Self {
+            mode: Mode::Hold,
+            pos: position,
+            vel: 0.0,
+            acc: 0.0,
+        }
+    }
+
+    /// Starts `cmd` from the current reference state (the checks of the fixed-point
+    /// generator are the caller's: the same command is given to both).
+    pub fn command(&mut self, cmd: Command) {
+        match cmd {
+            Command::Hold => {
+                self.mode = Mode::Hold;
+                self.vel = 0.0;
+                self.acc = 0.0;
+            }
+            Command::Step { target } => {
+                self.mode = Mode::Hold;
+                self.pos = i32f32(target.to_bits());
+                self.vel = 0.0;
+                self.acc = 0.0;
+            }
+            Command::Move {
+                target,
+                duration_ms,
+            } => {
+                let t = duration_ms as f32 / 1000.0;
+                let target = i32f32(target.to_bits());
+                let h = target - self.pos;
+                let c1 = self.vel * t;
+                let c2 = self.acc * t * t / 2.0;
+                let c = [
+                    c1,
+                    c2,
+                    10.0 * h - 6.0 * c1 - 3.0 * c2,
+                    -15.0 * h + 8.0 * c1 + 3.0 * c2,
+                    6.0 * h - 3.0 * c1 - c2,
+                ];
+                let mut dv = [0.0; 5];
+                let mut da = [0.0; 4];
+                for (i, ci) in c.iter().enumerate() {
+                    let n = i as f32 + 1.0;
+                    dv[i] = ci * n / t;
+                    if i >= 1 {
+                        da[i - 1] = ci * n * (n - 1.0) / (t * t);
+                    }
+                }
+                self.mode = Mode::Quintic {
+                    p0: self.pos,
+                    target,
+                    c,
+                    dv,
+                    da,
+                    tau: 0.0,
+                    dtau: 1.0 / duration_ms as f32,
+                    left: duration_ms,
+                };
+            }
+            Command::Sine {
+                amplitude,
+                frequency,
+            } => {
+                let a = i32f32(amplitude.to_bits());
+                let w = i32f32(frequency.to_bits());
+                self.mode = Mode::Sine {
+                    center: self.pos,
+                    amp: a,
+                    vel_amp: a * w,
+                    acc_amp: a * w * w,
+                    phase: 0.0,
+                    dphase: w * DT,
+                };
+            }
+        }
+    }
+
+    /// Advances one tick and returns the new reference.
+    pub fn advance(&mut self) -> FloatReference {
+        match &mut self.mode {
+            Mode::Hold => {}
+            Mode::Quintic {
+                p0,
+                target,
+                c,
+                dv,
+                da,
+                tau,
+                dtau,
+                left,
+            } => {
+                *left = left.saturating_sub(1);
+                if *left == 0 {
+                    self.pos = *target;
+                    self.vel = 0.0;
+                    self.acc = 0.0;
+                    self.mode = Mode::Hold;
+                } else {
+                    *tau += *dtau;
+                    let t = *tau;
+                    let horner = |k: &[f32]| k.iter().rev().fold(0.0, |acc, &ki| acc * t + ki);
+                    self.pos = *p0 + horner(c) * t;
+                    self.vel = horner(dv);
+                    self.acc = horner(da);
+                }
+            }
+            Mode::Sine {
+                center,
+                amp,
+                vel_amp,
+                acc_amp,
+                phase,
+                dphase,
+            } => {
+                *phase += *dphase;
+                if *phase >= 2.0 * PI {
+                    *phase -= 2.0 * PI;
+                }
+                let s = libm::sinf(*phase);
+                let co = libm::cosf(*phase);
+                self.pos = *center + *amp * s;
+                self.vel = *vel_amp * co;
+                self.acc = -*acc_amp * s;
+            }
+        }
+        FloatReference {
+            position: self.pos,
+            velocity: self.vel,
+            acceleration: self.acc,
+        }
+    }
+}
+
+/// Raw sensor values of one tick (as `model::control::Measurements`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FloatMeasurements {
+    /// Link encoder, counts.
+    pub link_encoder: u16,
+    /// Gear pot, counts, if fitted.
+    pub gear_pot: Option<u16>,
+    /// Current ADC, counts.
+    pub current_adc: u16,
+    /// Duty the bridge applied last tick if it differs from the controller's output, ‰.
+    pub applied_duty: Option<i16>,
+}
+
+/// Live limits (as `model::control::Flags`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FloatFlags {
+    /// Coupling torque limited.
+    pub torque_limited: bool,
+    /// Motor current limited.
+    pub current_limited: bool,
+    /// Duty at ±max.
+    pub duty_saturated: bool,
+}
+
+/// What the f32 controller decided (as `model::control::Output`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FloatOutput {
+    /// Duty, ‰.
+    pub duty: i16,
+    /// Live limits.
+    pub flags: FloatFlags,
+    /// Coupling torque estimate, N·m.
+    pub torque_estimate: f32,
+    /// Reference, rad.
+    pub reference: f32,
+    /// Link angle, rad.
+    pub link_angle: f32,
+    /// Gear velocity, rad/s.
+    pub gear_velocity: f32,
+    /// Filtered link velocity, rad/s.
+    pub link_velocity: f32,
+    /// Motor current, A.
+    pub current: f32,
+}
+
+/// The link-position controller in f32.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FloatController {
+    s: FloatSchedule,
+    traj: FloatTrajectory,
+    started: bool,
+    commanded: bool,
+    enc_prev: u16,
+    n_link: i32,
+    w_link: f32,
+    w_fb: f32,
+    w_ref: f32,
+    w_gear_prev: f32,
+    integ: f32,
+    duty_prev: i16,
+    defl_prev: f32,
+    defl_valid: bool,
+}
+
+impl FloatController {
+    /// A controller with the constants `s`, holding the link where the first measurement
+    /// finds it.
+    #[must_use]
+    pub const fn new(s: FloatSchedule) -> Self {
+        Self {
+            s,
+            traj: FloatTrajectory::new(0.0),
+            started: false,
+            commanded: false,
+            enc_prev: 0,
+            n_link: 0,
+            w_link: 0.0,
+            w_fb: 0.0,
+            w_ref: 0.0,
+            w_gear_prev: 0.0,
+            integ: 0.0,
+            duty_prev: 0,
+            defl_prev: 0.0,
+            defl_valid: false,
+        }
+    }
+
+    /// Starts a trajectory command.
+    pub fn command(&mut self, cmd: Command) {
+        self.traj.command(cmd);
+        self.commanded = true;
+    }
+
+    /// Forgets the loop state (as `Controller::reset`).
+    pub fn reset(&mut self) {
+        self.started = false;
+        self.commanded = false;
+        self.w_link = 0.0;
+        self.w_fb = 0.0;
+        self.w_ref = 0.0;
+        self.w_gear_prev = 0.0;
+        self.integ = 0.0;
+        self.duty_prev = 0;
+        self.defl_valid = false;
+    }
+
+    fn centred_counts(&self, raw: u16) -> i32 {
+        let v = (i32::from(raw) - self.s.encoder_zero) & (ENCODER_COUNTS - 1);
+        if v >= ENCODER_COUNTS / 2 {
+            v - ENCODER_COUNTS
+        } else {
+            v
+        }
+    }
+
+    /// One 1 kHz control step (the f32 port of `Controller::step`).
+    pub fn step(&mut self, m: &FloatMeasurements) -> FloatOutput {
+        let s = self.s;
+
+        // --- link angle ---
+        let delta = if self.started {
+            encoder_delta(m.link_encoder, self.enc_prev)
+        } else {
+            self.n_link = self.centred_counts(m.link_encoder);
+            0
+        };
+        self.enc_prev = m.link_encoder;
+        self.n_link = self.n_link.saturating_add(delta);
+        let theta_l = (2 * self.n_link + 1) as f32 * HALF_COUNT;
+        if !self.started {
+            self.started = true;
+            if !self.commanded {
+                self.traj = FloatTrajectory::new(theta_l);
+            }
+        }
+        let v_raw = delta as f32 * COUNT_PER_TICK;
+        self.w_link += s.alpha * (v_raw - self.w_link);
+
+        // --- current and the back-EMF observer ---
+        let adc = i32::from(m.current_adc) - ADC_MID;
+        let current = adc as f32 / ADC_COUNTS_PER_A;
+        let applied = m.applied_duty.unwrap_or(self.duty_prev);
+        let w_gear = f32::from(applied) * s.w_per_duty - adc as f32 * s.w_per_count;
+        self.w_fb += s.alpha * (w_gear - self.w_fb);
+
+        // --- coupling torque estimate ---
+        let dw = w_gear - self.w_gear_prev;
+        self.w_gear_prev = w_gear;
+        let tau_i = s.kt * current - s.jg_fs * dw - s.bv * w_gear;
+        let tau = match m.gear_pot {
+            Some(pot) if s.w_defl != 0.0 => {
+                let pot = i32::from(pot) & (POT_COUNTS - 1);
+                let theta_g = (pot - s.pot_center) as f32 * POT_COUNT;
+                let phi = theta_g - theta_l;
+                let mag = (libm::fabsf(phi) - s.free_play).max(0.0);
+                let phi_e = if phi < 0.0 { -mag } else { mag };
+                let tau_d = s.k * phi_e;
+                tau_i + s.w_defl * (tau_d - tau_i)
+            }
+            _ => tau_i,
+        };
+
+        // --- reference and error ---
+        let r = self.traj.advance();
+        let e_raw = r.position - theta_l;
+        let in_count = (-HALF_COUNT..HALF_COUNT).contains(&e_raw);
+        let e = if in_count { 0.0 } else { e_raw };
+        self.w_ref += s.alpha * (r.velocity - self.w_ref);
+
+        // --- feed-forward ---
+        let u_ff = s.ff_vel * r.velocity + s.ff_acc * r.acceleration;
+        let u_i = self.integ;
+        let tau_ref = s.j_link * r.acceleration + s.torque_per_duty * u_i;
+        let side = (s.fp_slope * tau_ref).clamp(-s.free_play, s.free_play);
+        let defl = s.inv_k * tau_ref + side;
+        let u_defl = if self.defl_valid {
+            s.ff_defl * (defl - self.defl_prev)
+        } else {
+            0.0
+        };
+        self.defl_prev = defl;
+        self.defl_valid = true;
+
+        // --- PID ---
+        let u = u_ff + u_defl + s.kp * e + u_i + s.kd * (self.w_ref - self.w_fb);
+
+        // --- limits ---
+        let emf = s.duty_per_w * w_gear;
+        let di = s.duty_per_amp * s.i_lim;
+        let dl = s.duty_lim;
+        let (hi_i, lo_i) = (emf + di, emf - di);
+        let (mut hi, mut lo) = (hi_i.min(dl), lo_i.max(-dl));
+        if lo > hi {
+            let v = emf.clamp(-dl, dl);
+            hi = v;
+            lo = v;
+        }
+        let mut u = u;
+        if r.velocity == 0.0
+            && r.acceleration == 0.0
+            && libm::fabsf(w_gear) > s.brake_min_w
+            && (w_gear > 0.0) == (e > 0.0)
+            && e != 0.0
+            && w_gear * w_gear > s.two_a_brake * libm::fabsf(e)
+        {
+            u = if w_gear > 0.0 { f32::MIN } else { f32::MAX };
+        }
+        let sat_hi = u > hi;
+        let sat_lo = u < lo;
+        let uc = u.clamp(lo, hi);
+        let at_current = (sat_hi && hi == hi_i) || (sat_lo && lo == lo_i);
+        let flags = FloatFlags {
+            torque_limited: (at_current && s.i_lim_from_beams) || libm::fabsf(tau) > s.tau_lim,
+            current_limited: at_current && !s.i_lim_from_beams,
+            duty_saturated: (sat_hi && hi == dl) || (sat_lo && lo == -dl),
+        };
+
+        // --- integrator ---
+        let inc = if in_count {
+            let slip = w_gear - r.velocity;
+            if libm::fabsf(slip) <= s.w_deadband {
+                0.0
+            } else {
+                -s.kp_dt * slip
+            }
+        } else if libm::fabsf(e) < s.int_band {
+            s.ki_dt * e
+        } else {
+            0.0
+        };
+        if inc != 0.0 && !((sat_hi && inc > 0.0) || (sat_lo && inc < 0.0)) {
+            self.integ = (self.integ + inc).clamp(-dl, dl);
+        }
+
+        let duty = libm::floorf(uc + 0.5).clamp(-1000.0, 1000.0) as i16;
+        self.duty_prev = duty;
+        FloatOutput {
+            duty,
+            flags,
+            torque_estimate: tau,
+            reference: r.position,
+            link_angle: theta_l,
+            gear_velocity: w_gear,
+            link_velocity: self.w_link,
+            current,
+        }
+    }
+}
+
+/// The supervisor's thresholds in f32 and its latch (the port of `Supervisor`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FloatSupervisor {
+    trip_adc: i32,
+    adc_min: u16,
+    adc_max: u16,
+    max_jump_counts: i32,
+    max_pot_jump: i32,
+    stuck_ticks: u16,
+    torque_cap: f32,
+    envelope: f32,
+    pot_center: i32,
+    position_min: f32,
+    position_max: f32,
+    timeout_ticks: u32,
+    latched: FaultSet,
+    prev_encoder: Option<u16>,
+    prev_pot: Option<u16>,
+    unchanged_ticks: u16,
+    last_heartbeat: Option<u32>,
+}
+
+/// Engineering value → millionths, saturated (µrad, µN·m).
+fn to_micro(v: f32) -> i32 {
+    // `as` saturates at the i32 range.
+    (v * 1e6) as i32
+}
+
+impl FloatSupervisor {
+    /// The thresholds of the fixed-point supervisor `sup` in f32 (`pot_center` from the
+    /// controller's sensor calibration).
+    #[must_use]
+    pub fn new(sup: &Supervisor, pot_center: u16) -> Self {
+        let cfg = sup.config();
+        FloatSupervisor {
+            trip_adc: ((cfg.trip_current_a.to_bits() * 1024) >> 32) as i32,
+            adc_min: cfg.adc_min,
+            adc_max: cfg.adc_max,
+            max_jump_counts: sup.max_jump_counts(),
+            max_pot_jump: i32::from(cfg.max_pot_jump),
+            stuck_ticks: cfg.stuck_ticks,
+            torque_cap: i32f32(sup.torque_capacity().to_bits()),
+            envelope: i32f32(sup.deflection_envelope().to_bits()),
+            pot_center: i32::from(pot_center),
+            position_min: i32f32(cfg.position_min.to_bits()),
+            position_max: i32f32(cfg.position_max.to_bits()),
+            timeout_ticks: cfg.command_timeout_ms,
+            latched: FaultSet(0),
+            prev_encoder: None,
+            prev_pot: None,
+            unchanged_ticks: 0,
+            last_heartbeat: None,
+        }
+    }
+
+    /// The latched faults.
+    #[must_use]
+    pub const fn latched(&self) -> FaultSet {
+        self.latched
+    }
+
+    fn latch(&mut self, code: FaultCode, value: i32, tick: u32) -> Option<Fault> {
+        if self.latched.contains(code) {
+            return None;
+        }
+        self.latched.0 |= code.bit();
+        Some(Fault { code, value, tick })
+    }
+
+    /// The per-tick checks (the port of `Supervisor::check`): returns the first fault
+    /// newly latched in this tick.
+    pub fn check(&mut self, tick: u32, r: &TickInput, out: &FloatOutput) -> Option<Fault> {
+        let mut new: Option<Fault> = None;
+        let mut note = |s: &mut Self, code: FaultCode, value: i32| {
+            if let Some(f) = s.latch(code, value, tick) {
+                if new.is_none() {
+                    new = Some(f);
+                }
+            }
+        };
+        if let Some(sensor) = r.read_error {
+            note(self, FaultCode::SensorRead, sensor as i32);
+        }
+        if r.current_adc < self.adc_min || r.current_adc > self.adc_max {
+            note(self, FaultCode::AdcOutOfRange, i32::from(r.current_adc));
+        } else {
+            let adc = i32::from(r.current_adc) - ADC_MID;
+            if adc.abs() > self.trip_adc {
+                note(self, FaultCode::OverCurrent, adc * 1000 / 1024);
+            }
+        }
+        let mut link_moved = true;
+        if let Some(prev) = self.prev_encoder {
+            let d = encoder_delta(r.link_encoder, prev);
+            if d.abs() > self.max_jump_counts {
+                note(self, FaultCode::SensorJump, d);
+            }
+            link_moved = d != 0;
+        }
+        self.prev_encoder = Some(r.link_encoder);
+        self.unchanged_ticks = if link_moved {
+            0
+        } else {
+            self.unchanged_ticks.saturating_add(1)
+        };
+        if let Some(pot) = r.gear_pot {
+            if let Some(prev) = self.prev_pot {
+                let d = i32::from(pot) - i32::from(prev);
+                if d.abs() > self.max_pot_jump {
+                    note(self, FaultCode::SensorJump, d);
+                }
+            }
+            self.prev_pot = Some(pot);
+            let theta_g = (i32::from(pot) - self.pot_center) as f32 * POT_COUNT;
+            let phi = theta_g - out.link_angle;
+            if libm::fabsf(phi) > self.envelope {
+                let tau = libm::fabsf(out.torque_estimate);
+                if self.unchanged_ticks >= self.stuck_ticks && tau < self.torque_cap / 2.0 {
+                    note(self, FaultCode::SensorStuck, to_micro(phi));
+                } else {
+                    note(self, FaultCode::BeamOverload, to_micro(phi));
+                }
+            }
+        } else {
+            self.prev_pot = None;
+        }
+        let tau = out.torque_estimate;
+        if libm::fabsf(tau) > self.torque_cap {
+            note(self, FaultCode::BeamOverload, to_micro(tau));
+        }
+        let theta = out.link_angle;
+        if theta < self.position_min || theta > self.position_max {
+            note(self, FaultCode::PositionLimit, to_micro(theta));
+        }
+        if let Some(last) = self.last_heartbeat {
+            let since = tick.wrapping_sub(last);
+            if since > self.timeout_ticks {
+                note(
+                    self,
+                    FaultCode::CommandTimeout,
+                    i32::try_from(since).unwrap_or(i32::MAX),
+                );
+            }
+        }
+        new
+    }
+}
+
+/// Enable state of the f32 servo.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FloatServoState {
+    /// Motor off.
+    Disabled,
+    /// Driving.
+    Enabled,
+    /// A fault is latched.
+    Faulted,
+}
+
+/// One tick's decision of the f32 servo (as `model::servo::TickOutput`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FloatTickOutput {
+    /// Tick number.
+    pub tick: u32,
+    /// What the H-bridge must do.
+    pub bridge: BridgeDemand,
+    /// The controller's output.
+    pub control: FloatOutput,
+    /// A fault latched in this tick.
+    pub new_fault: Option<Fault>,
+    /// State after the tick.
+    pub state: FloatServoState,
+}
+
+/// The f32 controller under the f32 supervisor, with the enable state (the port of
+/// `model::servo::Servo`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FloatServo {
+    controller: FloatController,
+    supervisor: FloatSupervisor,
+    state: FloatServoState,
+    tick: u32,
+    was_off: bool,
+}
+
+impl FloatServo {
+    /// A disabled servo mirroring the fixed-point `servo` as configured with `config`.
+    #[must_use]
+    pub fn new(servo: &model::servo::Servo, config: &Config) -> Self {
+        let sched = FloatSchedule::new(servo.controller().schedule(), config);
+        FloatServo {
+            controller: FloatController::new(sched),
+            supervisor: FloatSupervisor::new(servo.supervisor(), config.sensors.pot_center),
+            state: FloatServoState::Disabled,
+            tick: 0,
+            was_off: true,
+        }
+    }
+
+    /// The state.
+    #[must_use]
+    pub const fn state(&self) -> FloatServoState {
+        self.state
+    }
+
+    /// The latched faults.
+    #[must_use]
+    pub const fn faults(&self) -> FaultSet {
+        self.supervisor.latched()
+    }
+
+    /// Turns the motor on from `Disabled` (controller reset); refused while faulted.
+    pub fn enable(&mut self) -> bool {
+        match self.state {
+            FloatServoState::Faulted => false,
+            FloatServoState::Enabled => true,
+            FloatServoState::Disabled => {
+                self.controller.reset();
+                self.state = FloatServoState::Enabled;
+                true
+            }
+        }
+    }
+
+    /// Gives the controller a command (refused while faulted).
+    pub fn command(&mut self, cmd: Command) -> bool {
+        if self.state == FloatServoState::Faulted {
+            return false;
+        }
+        self.controller.command(cmd);
+        true
+    }
+
+    /// One 1 kHz tick (the port of `Servo::tick`).
+    pub fn tick(&mut self, input: &TickInput) -> FloatTickOutput {
+        self.tick = self.tick.wrapping_add(1);
+        let m = FloatMeasurements {
+            link_encoder: input.link_encoder,
+            gear_pot: input.gear_pot,
+            current_adc: input.current_adc,
+            applied_duty: if self.was_off { Some(0) } else { None },
+        };
+        let control = self.controller.step(&m);
+        let new_fault = self.supervisor.check(self.tick, input, &control);
+        if new_fault.is_some() {
+            self.state = FloatServoState::Faulted;
+            self.was_off = true;
+        }
+        let bridge = if self.state == FloatServoState::Enabled {
+            BridgeDemand::Drive(control.duty)
+        } else {
+            BridgeDemand::Off
+        };
+        self.was_off = bridge == BridgeDemand::Off;
+        FloatTickOutput {
+            tick: self.tick,
+            bridge,
+            control,
+            new_fault,
+            state: self.state,
+        }
+    }
+}
+
+/// L in mm as f32 (configuration time).
+#[must_use]
+pub fn length_mm(len: Length) -> f32 {
+    i32f32(len.to_bits())
+}
+
+/// k in N·m/rad as f32 (configuration time).
+#[must_use]
+pub fn stiffness_nm_per_rad(k: Stiffness) -> f32 {
+    fx(k.to_bits(), 64)
+}

@@ -1,0 +1,459 @@
+//! `vsa-bench`: instruction counts of the control code on an emulated board (issue 7).
+//!
+//! Run by `cargo xtask bench` under QEMU `-icount shift=N,sleep=off`: every instruction
+//! advances virtual time by 2^N ns, and SysTick counts the core clock, so a SysTick
+//! difference is `2^N·f_sysclk/10⁹` counts per instruction (QEMU has no cycle counter).
+//! The firmware logs raw SysTick counts; the xtask converts them.
+//!
+//! # How a call is timed
+//!
+//! SysTick runs free (reload 2²⁴ − 1, no interrupt) while `init` runs the benchmarks with
+//! interrupts masked. One measurement reads the counter, passes the input through
+//! `core::hint::black_box` (so the call cannot be hoisted above the first reading or
+//! constant-folded), makes the call, passes the result through `black_box` (so it cannot
+//! sink below the second reading or be dropped) and reads the counter again. The same
+//! measurement of an identity closure is the calibration, subtracted from every sample.
+//!
+//! # What is timed, over which inputs
+//!
+//! For each clutch length L = 1 … 5 mm, the servo (paper preset, default supervisor)
+//! runs 2000 ticks in closed loop with the simulated actuator (`plant`, 0.3 N·m load, as
+//! in the step sweep; the plant is not timed): hold, a 0.5 rad raw step, a 200 ms
+//! minimum-jerk move back, a 2 Hz sine. The f32 port runs the same script in its own
+//! closed loop (a second plant), so each controller sees the sensors its own outputs
+//! produce. Each tick times:
+//!
+//! * `control_step`: sensors read through the driver traits → `Servo::tick` (controller +
+//!   supervisor) → H-bridge driver, as `firmware/src/control.rs` does; the world (plant)
+//!   excluded. `control_step_f32`: the same with the f32 port (`bench::float::FloatServo`).
+//! * `controller`, `controller_f32`: `Controller::step` alone (a copy of the servo's
+//!   controller fed the same measurements), and its f32 port.
+//! * `capacity_check`: the per-tick beam capacity check |τ̂| ≤ τ_cap(L)
+//!   (`Setting::within_capacity` on the torque estimate).
+//! * `telemetry`: `protocol::encode_telemetry` of a sample built from the tick's output
+//!   (postcard + CRC-32 + COBS into a frame buffer).
+//!
+//! Over 64 clutch lengths from t_c = 1 mm to l = 8 mm (paper design): `stiffness` k(L)
+//! (`Design::stiffness`), `inverse` L(k) (`Design::clutch_length`, at k(L) of those
+//! lengths), `capacity` τ_cap(L) (`Design::torque_capacity`), and the f32 k(L) and L(k).
+//!
+//! `tick_overhead`: after `init`, SysTick fires every 50 000 counts into an empty task
+//! bound to it at the firmware's control priority (3). `idle` spins reading the counter;
+//! the reading after each interrupt is late by one loop iteration plus the whole interrupt
+//! (RTIC's handler around the empty task, entry and return); the loop iteration alone is
+//! the smallest difference between readings without an interrupt. The difference is the
+//! tick overhead: every instruction the CPU executes because a tick happened. (Exception
+//! entry and return are not instructions: QEMU's icount does not count the hardware
+//! stacking a real core spends 12 cycles on each way.)
+//!
+//! Each result is one defmt line `bench NAME: n N, sum S, min A, max B counts` (net of the
+//! calibration); the run ends with `bench done` and exit status 0.
+#![no_std]
+#![no_main]
+#![deny(missing_docs)]
+
+use bench::board;
+use core::hint::black_box;
+use cortex_m::peripheral::{syst::SystClkSource, SYST};
+
+/// SysTick reload for free-running measurements (24-bit counter).
+const FREE_RELOAD: u32 = 0x00FF_FFFF;
+/// SysTick period for the tick-overhead measurement, counts.
+const TICK_PERIOD: u32 = 50_000;
+/// Interrupts to measure.
+const TICKS: u32 = 64;
+
+/// Counts between two readings of the down-counter (at most one wrap of 2²⁴).
+#[inline(always)]
+fn elapsed(t0: u32, t1: u32) -> u32 {
+    t0.wrapping_sub(t1) & FREE_RELOAD
+}
+
+/// Times `f(x)` in SysTick counts (see the crate docs).
+#[inline(always)]
+fn time<T, R>(x: T, f: impl FnOnce(T) -> R) -> (R, u32) {
+    let t0 = SYST::get_current();
+    let x = black_box(x);
+    let r = black_box(f(x));
+    let t1 = SYST::get_current();
+    (r, elapsed(t0, t1))
+}
+
+/// Samples of one benchmark, SysTick counts net of the calibration.
+#[derive(Clone, Copy)]
+struct Stat {
+    n: u32,
+    sum: u64,
+    min: u32,
+    max: u32,
+}
+
+impl Stat {
+    const fn new() -> Self {
+        Self {
+            n: 0,
+            sum: 0,
+            min: u32::MAX,
+            max: 0,
+        }
+    }
+
+    fn add(&mut self, counts: u32, calibration: u32) {
+        let c = counts.saturating_sub(calibration);
+        self.n += 1;
+        self.sum += u64::from(c);
+        self.min = self.min.min(c);
+        self.max = self.max.max(c);
+    }
+
+    fn log(&self, name: &str) {
+        defmt::println!(
+            "bench {=str}: n {=u32}, sum {=u64}, min {=u32}, max {=u32} counts",
+            name,
+            self.n,
+            self.sum,
+            if self.n == 0 { 0 } else { self.min },
+            self.max
+        );
+    }
+}
+
+/// The smallest count of an empty measurement (two counter readings around an identity).
+fn calibrate() -> u32 {
+    let mut c = u32::MAX;
+    for i in 0..32u32 {
+        let (_, t) = time(i, |x| x);
+        c = c.min(t);
+    }
+    c
+}
+
+mod suite {
+    use super::{time, Stat};
+    use bench::float::{
+        length_mm, stiffness_nm_per_rad, FloatBeam, FloatController, FloatMeasurements,
+        FloatSchedule, FloatServo,
+    };
+    use bench::io::Io;
+    use model::control::{Command, Config, Measurements};
+    use model::servo::Servo;
+    use model::supervisor::SupervisorConfig;
+    use model::{Angle, Design, Frequency, Length, Torque};
+    use plant::harness::{plant_for, Scenario};
+    use protocol::{encode_telemetry, FaultSet, LimitFlags, TelemetrySample, MAX_TELEMETRY_FRAME};
+
+    /// Ticks per clutch length.
+    const SEGMENT_TICKS: u32 = 2000;
+    /// Clutch lengths of the beam-function sweep.
+    const SWEEP: u32 = 64;
+
+    /// I32F32 bits → millionths, saturated (µrad, µN·m).
+    fn micro(bits: i64) -> i32 {
+        ((i128::from(bits) * 1_000_000) >> 32).clamp(i128::from(i32::MIN), i128::from(i32::MAX))
+            as i32
+    }
+
+    /// The command scheduled at `tick` of a segment.
+    fn command_at(tick: u32) -> Option<Command> {
+        match tick {
+            300 => Some(Command::Step {
+                target: Angle::from_bits(1 << 31), // 0.5 rad
+            }),
+            1000 => Some(Command::Move {
+                target: Angle::ZERO,
+                duration_ms: 200,
+            }),
+            1500 => Some(Command::Sine {
+                amplitude: Angle::from_bits(429_496_730), // 0.1 rad
+                frequency: Frequency::from_int(12),       // rad/s (≈ 2 Hz)
+            }),
+            _ => None,
+        }
+    }
+
+    /// The closed-loop benchmarks at each clutch length.
+    pub fn closed_loop(cal: u32) {
+        let mut step = Stat::new();
+        let mut step_f = Stat::new();
+        let mut ctl_s = Stat::new();
+        let mut ctl_f = Stat::new();
+        let mut cap = Stat::new();
+        let mut tel = Stat::new();
+        let mut worst_duty_diff: i32 = 0;
+        let mut sum_duty_diff: u64 = 0;
+        let mut faults: u32 = 0;
+        let mut worst_angle_urad: u32 = 0;
+        let mut ticks: u32 = 0;
+        let design = Design::paper();
+        let mut buf = [0u8; MAX_TELEMETRY_FRAME];
+        for mm in 1..=5 {
+            let config = Config::paper(Length::from_int(mm));
+            let Ok(mut servo) = Servo::new(&design, &config, &SupervisorConfig::DEFAULT) else {
+                defmt::error!("bench: servo rejected at L = {=i32} mm", mm);
+                continue;
+            };
+            let mut fservo = FloatServo::new(&servo, &config);
+            let mut scenario = Scenario::new(config, Command::Hold);
+            scenario.load_nm = 0.3;
+            let (Ok(mut plant), Ok(mut fplant)) = (plant_for(&scenario), plant_for(&scenario))
+            else {
+                defmt::error!("bench: plant rejected at L = {=i32} mm", mm);
+                continue;
+            };
+            let (Some(mut io), Some(mut fio)) = (Io::new(), Io::new()) else {
+                defmt::error!("bench: H-bridge driver refused the lines");
+                continue;
+            };
+            let _ = servo.enable();
+            let _ = fservo.enable();
+            let mut ctl = servo.controller().clone();
+            let mut fctl =
+                FloatController::new(FloatSchedule::new(servo.controller().schedule(), &config));
+            let setting = *servo.controller().schedule().setting();
+            let mut readings = plant.readings();
+            let mut freadings = fplant.readings();
+            for tick in 0..SEGMENT_TICKS {
+                if let Some(cmd) = command_at(tick) {
+                    let _ = servo.command(cmd);
+                    let _ = ctl.command(cmd);
+                    fservo.command(cmd);
+                    fctl.command(cmd);
+                }
+                io.present(
+                    readings.link_encoder,
+                    readings.gear_pot,
+                    readings.current_adc,
+                );
+                fio.present(
+                    freadings.link_encoder,
+                    freadings.gear_pot,
+                    freadings.current_adc,
+                );
+
+                let (out, c) = time((&mut io, &mut servo), |(io, servo)| {
+                    let input = io.read_inputs();
+                    let out = servo.tick(&input);
+                    io.drive(out.bridge);
+                    out
+                });
+                step.add(c, cal);
+                let (fout, c) = time((&mut fio, &mut fservo), |(io, servo)| {
+                    let input = io.read_inputs();
+                    let out = servo.tick(&input);
+                    io.drive(out.bridge);
+                    out
+                });
+                step_f.add(c, cal);
+
+                let m = Measurements {
+                    link_encoder: readings.link_encoder,
+                    gear_pot: Some(readings.gear_pot),
+                    current_adc: readings.current_adc,
+                    applied_duty: None,
+                };
+                let (_, c) = time((&mut ctl, &m), |(ctl, m)| ctl.step(m));
+                ctl_s.add(c, cal);
+                let fm = FloatMeasurements {
+                    link_encoder: m.link_encoder,
+                    gear_pot: m.gear_pot,
+                    current_adc: m.current_adc,
+                    applied_duty: None,
+                };
+                let (_, c) = time((&mut fctl, &fm), |(ctl, m)| ctl.step(m));
+                ctl_f.add(c, cal);
+
+                let (_, c) = time((&setting, out.control.torque_estimate), |(s, t)| {
+                    s.within_capacity(t)
+                });
+                cap.add(c, cal);
+
+                let sample = TelemetrySample {
+                    tick: out.tick,
+                    reference_urad: micro(out.control.reference.to_bits()),
+                    link_angle_urad: micro(out.control.link_angle.to_bits()),
+                    gear_angle_urad: micro(
+                        i64::from(i32::from(readings.gear_pot) - 512) * 21_961_324,
+                    ),
+                    current_ma: (micro(out.control.current.to_bits()) / 1000) as i16,
+                    torque_unm: micro(out.control.torque_estimate.to_bits()),
+                    duty_permille: io.applied_duty(),
+                    faults: FaultSet(servo.faults().0),
+                    limits: LimitFlags(
+                        u8::from(out.control.flags.torque_limited)
+                            | u8::from(out.control.flags.current_limited) << 1
+                            | u8::from(out.control.flags.duty_saturated) << 2,
+                    ),
+                };
+                let (_, c) = time((tick as u16, &sample, &mut buf), |(seq, s, b)| {
+                    encode_telemetry(seq, s, b)
+                });
+                tel.add(c, cal);
+
+                // How far the f32 port's closed loop is from the fixed-point one.
+                let d = (i32::from(io.applied_duty()) - i32::from(fio.applied_duty())).abs();
+                worst_duty_diff = worst_duty_diff.max(d);
+                sum_duty_diff += u64::from(d.unsigned_abs());
+                faults += u32::from(out.new_fault.is_some()) + u32::from(fout.new_fault.is_some());
+                let a = plant.state().link_angle_rad - fplant.state().link_angle_rad;
+                worst_angle_urad = worst_angle_urad.max((libm::fabs(a) * 1e6) as u32);
+                ticks += 1;
+
+                readings = plant.step_tick(io.applied_duty());
+                freadings = fplant.step_tick(fio.applied_duty());
+            }
+            if !servo.faults().is_empty() {
+                defmt::warn!(
+                    "bench: faults {=u16:#x} latched at L = {=i32} mm",
+                    servo.faults().0,
+                    mm
+                );
+            }
+        }
+        step.log("control_step");
+        step_f.log("control_step_f32");
+        ctl_s.log("controller");
+        ctl_f.log("controller_f32");
+        cap.log("capacity_check");
+        tel.log("telemetry");
+        defmt::println!(
+            "bench f32 port vs fixed point, each in its own closed loop: {=u32} ticks, |duty difference| mean {=f32} max {=i32} permille, link angle difference max {=u32} urad, {=u32} faults",
+            ticks,
+            sum_duty_diff as f32 / ticks.max(1) as f32,
+            worst_duty_diff,
+            worst_angle_urad,
+            faults
+        );
+    }
+
+    /// k(L), L(k), τ_cap(L) over the adjustable range, fixed point and f32.
+    pub fn beam(cal: u32) {
+        let design = Design::paper();
+        let fbeam = FloatBeam::new(&design);
+        let (t_c, l) = design.adjustable_range();
+        let (mut k_s, mut k_f, mut inv_s, mut inv_f, mut cap) = (
+            Stat::new(),
+            Stat::new(),
+            Stat::new(),
+            Stat::new(),
+            Stat::new(),
+        );
+        let mut errors: u32 = 0;
+        let span = l.to_bits() - t_c.to_bits();
+        for i in 0..SWEEP {
+            let len = Length::from_bits(t_c.to_bits() + span * i64::from(i) / i64::from(SWEEP - 1));
+            let (k, c) = time((&design, len), |(d, len)| d.stiffness(len));
+            k_s.add(c, cal);
+            let lf = length_mm(len);
+            let (_, c) = time((&fbeam, lf), |(b, l)| b.stiffness(l));
+            k_f.add(c, cal);
+            let Ok(k) = k else {
+                errors += 1;
+                continue;
+            };
+            let (back, c) = time((&design, k), |(d, k)| d.clutch_length(k));
+            inv_s.add(c, cal);
+            if back != Ok(len) {
+                errors += 1;
+            }
+            let kf = stiffness_nm_per_rad(k);
+            let (_, c) = time((&fbeam, kf), |(b, k)| b.clutch_length(k));
+            inv_f.add(c, cal);
+            let (t, c) = time((&design, len), |(d, len)| d.torque_capacity(len));
+            cap.add(c, cal);
+            errors += u32::from(t.map_or(true, |t: Torque| t.to_bits() <= 0));
+        }
+        k_s.log("stiffness");
+        k_f.log("stiffness_f32");
+        inv_s.log("inverse");
+        inv_f.log("inverse_f32");
+        cap.log("capacity");
+        if errors != 0 {
+            defmt::error!("bench: {=u32} beam-function results were wrong", errors);
+        }
+    }
+}
+
+mod ticks {
+    //! The RTIC tick overhead, measured from `idle` (see the crate docs).
+    use super::{Stat, TICKS, TICK_PERIOD};
+    use cortex_m::peripheral::SYST;
+
+    /// Spins reading SysTick until `TICKS` interrupts were seen, then logs the overhead.
+    pub fn measure() -> Stat {
+        let reload = TICK_PERIOD - 1;
+        let mut gaps = [0u32; TICKS as usize];
+        let mut seen = 0usize;
+        let mut base = u32::MAX;
+        let mut prev = SYST::get_current();
+        while seen < gaps.len() {
+            let now = SYST::get_current();
+            if now > prev {
+                // The counter reloaded since the last reading: the interrupt ran in between.
+                if let Some(g) = gaps.get_mut(seen) {
+                    *g = prev + (reload + 1) - now;
+                }
+                seen += 1;
+            } else {
+                base = base.min(prev - now);
+            }
+            prev = now;
+        }
+        let mut stat = Stat::new();
+        // The first gap may include the start of the loop: skip it.
+        for &g in gaps.iter().skip(1) {
+            stat.add(g, base);
+        }
+        stat
+    }
+}
+
+#[rtic::app(device = bench::board::pac)]
+mod app {
+    use super::{board, SystClkSource, FREE_RELOAD, TICK_PERIOD};
+    use cortex_m::peripheral::SYST;
+
+    #[shared]
+    struct Shared {}
+
+    #[local]
+    struct Local {}
+
+    #[init]
+    fn init(cx: init::Context) -> (Shared, Local) {
+        let mut syst = cx.core.SYST;
+        syst.set_clock_source(SystClkSource::Core);
+        syst.set_reload(FREE_RELOAD);
+        syst.clear_current();
+        syst.disable_interrupt();
+        syst.enable_counter();
+        defmt::println!(
+            "bench board {=str}: sysclk {=u32} Hz",
+            board::NAME,
+            board::SYSCLK_HZ
+        );
+        let cal = super::calibrate();
+        defmt::println!("bench calibration: {=u32} counts", cal);
+        super::suite::beam(cal);
+        super::suite::closed_loop(cal);
+
+        syst.disable_counter();
+        syst.set_reload(TICK_PERIOD - 1);
+        syst.clear_current();
+        syst.enable_interrupt();
+        syst.enable_counter();
+        (Shared {}, Local {})
+    }
+
+    /// The empty task whose overhead is measured, at the firmware's control priority.
+    #[task(binds = SysTick, priority = 3)]
+    fn tick(_: tick::Context) {}
+
+    #[idle]
+    fn idle(_: idle::Context) -> ! {
+        let stat = super::ticks::measure();
+        let _ = SYST::get_current();
+        stat.log("tick_overhead");
+        defmt::println!("bench done");
+        board::exit(true)
+    }
+}

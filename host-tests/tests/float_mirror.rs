@@ -1,0 +1,199 @@
+//! The f32 port in `vsa-bench` (kept only for the fixed-vs-float instruction counts of
+//! `cargo xtask bench`) must compute the same thing as the fixed-point model, or the
+//! comparison would be meaningless.
+
+use bench::float::{
+    length_mm, stiffness_nm_per_rad, FloatBeam, FloatController, FloatMeasurements, FloatSchedule,
+    FloatServo,
+};
+use model::control::{Command, Config, Measurements};
+use model::servo::{BridgeDemand, Servo, TickInput};
+use model::supervisor::SupervisorConfig;
+use model::{Angle, Design, Frequency, Length};
+use plant::harness::{plant_for, Scenario};
+
+#[test]
+fn beam_functions_agree_within_1e5() {
+    let d = Design::paper();
+    let fb = FloatBeam::new(&d);
+    let (t_c, l) = d.adjustable_range();
+    let span = l.to_bits() - t_c.to_bits();
+    for i in 0..=200 {
+        let len = Length::from_bits(t_c.to_bits() + span * i / 200);
+        let k = d.stiffness(len).unwrap();
+        let kx = stiffness_nm_per_rad(k);
+        let kf = fb.stiffness(length_mm(len));
+        assert!((kf - kx).abs() <= 1e-5 * kx, "k({len:?}): {kf} vs {kx}");
+        let lx = length_mm(d.clutch_length(k).unwrap());
+        let lf = fb.clutch_length(kx);
+        assert!((lf - lx).abs() <= 1e-5 * lx, "L({kx}): {lf} vs {lx}");
+    }
+}
+
+/// The command the bench gives at `tick` of a segment (see `bench/src/main.rs`).
+fn command_at(tick: u32) -> Option<Command> {
+    match tick {
+        300 => Some(Command::Step {
+            target: Angle::from_bits(1 << 31),
+        }),
+        1000 => Some(Command::Move {
+            target: Angle::ZERO,
+            duration_ms: 200,
+        }),
+        1500 => Some(Command::Sine {
+            amplitude: Angle::from_bits(429_496_730),
+            frequency: Frequency::from_int(12),
+        }),
+        _ => None,
+    }
+}
+
+fn input(r: &plant::SensorReadings) -> TickInput {
+    TickInput {
+        link_encoder: r.link_encoder,
+        gear_pot: Some(r.gear_pot),
+        current_adc: r.current_adc,
+        read_error: None,
+    }
+}
+
+fn duty(b: BridgeDemand) -> i16 {
+    match b {
+        BridgeDemand::Drive(x) => x,
+        BridgeDemand::Off => 0,
+    }
+}
+
+/// The bench's closed-loop script (hold, 0.5 rad raw step, 200 ms move back, 2 Hz sine;
+/// 0.3 N·m load) at L = 1 … 5 mm, the fixed-point servo and the f32 port each in its own
+/// closed loop with the simulated actuator: neither faults, the link angles stay within
+/// one encoder count (2π/4096 = 1.53e-3 rad) of each other at every tick, and the duties
+/// differ by less than 5 ‰ on average.
+#[test]
+fn closed_loops_track_each_other_within_one_encoder_count() {
+    let design = Design::paper();
+    let count = core::f64::consts::TAU / 4096.0;
+    for mm in 1..=5 {
+        let config = Config::paper(Length::from_int(mm));
+        let mut servo = Servo::new(&design, &config, &SupervisorConfig::DEFAULT).unwrap();
+        let mut fservo = FloatServo::new(&servo, &config);
+        let mut sc = Scenario::new(config, Command::Hold);
+        sc.load_nm = 0.3;
+        let mut plant = plant_for(&sc).unwrap();
+        let mut fplant = plant_for(&sc).unwrap();
+        servo.enable().unwrap();
+        assert!(fservo.enable());
+        let (mut r, mut fr) = (plant.readings(), fplant.readings());
+        let (mut duty_diff, mut worst_angle) = (0i64, 0f64);
+        for tick in 0..2000 {
+            if let Some(c) = command_at(tick) {
+                servo.command(c).unwrap();
+                assert!(fservo.command(c));
+            }
+            let o = servo.tick(&input(&r));
+            let f = fservo.tick(&input(&fr));
+            assert_eq!(o.new_fault, None, "L = {mm} mm, tick {tick}");
+            assert_eq!(f.new_fault, None, "L = {mm} mm, tick {tick} (f32)");
+            let (d, fd) = (duty(o.bridge), duty(f.bridge));
+            duty_diff += i64::from((d - fd).abs());
+            r = plant.step_tick(d);
+            fr = fplant.step_tick(fd);
+            let a = (plant.state().link_angle_rad - fplant.state().link_angle_rad).abs();
+            worst_angle = worst_angle.max(a);
+        }
+        let mean = duty_diff as f64 / 2000.0;
+        assert!(worst_angle < count, "L = {mm} mm: {worst_angle} rad apart");
+        assert!(
+            mean < 5.0,
+            "L = {mm} mm: mean |duty difference| {mean} permille"
+        );
+    }
+}
+
+/// On identical readings the first ticks agree exactly, until the fixed-point deflection
+/// feed-forward's Q16 step (2.5 ‰) shows.
+#[test]
+fn first_ticks_agree() {
+    let design = Design::paper();
+    for mm in 1..=5 {
+        let config = Config::paper(Length::from_int(mm));
+        let mut c = model::Controller::new(&design, &config).unwrap();
+        let sched = *c.schedule();
+        let mut f = FloatController::new(FloatSchedule::new(&sched, &config));
+        for (i, (enc, pot, adc)) in [(7u16, 515u16, 2048u16), (7, 515, 2031)]
+            .into_iter()
+            .enumerate()
+        {
+            let applied = if i == 0 { Some(0) } else { None };
+            let m = Measurements {
+                link_encoder: enc,
+                gear_pot: Some(pot),
+                current_adc: adc,
+                applied_duty: applied,
+            };
+            let fm = FloatMeasurements {
+                link_encoder: enc,
+                gear_pot: Some(pot),
+                current_adc: adc,
+                applied_duty: applied,
+            };
+            let (o, fo) = (c.step(&m), f.step(&fm));
+            assert_eq!(o.duty, fo.duty, "L = {mm} mm, tick {i}");
+            assert_eq!(o.flags.torque_limited, fo.flags.torque_limited);
+            let tau = o.torque_estimate.get().to_num::<f32>();
+            assert!(
+                (tau - fo.torque_estimate).abs() < 1e-3,
+                "{tau} vs {}",
+                fo.torque_estimate
+            );
+            let w = o.gear_velocity.to_num::<f32>();
+            assert!(
+                (w - fo.gear_velocity).abs() < 1e-4,
+                "{w} vs {}",
+                fo.gear_velocity
+            );
+        }
+    }
+}
+
+/// The f32 supervisor latches the same faults at the same ticks as the fixed-point one on
+/// the same readings: ADC rail, over-current, encoder jump, pot jump, position limit.
+#[test]
+fn supervisors_latch_the_same_faults() {
+    let design = Design::paper();
+    let config = Config::paper(Length::from_int(3));
+    // (tick, what happens from that tick on)
+    type Edit = fn(&mut TickInput);
+    let cases: [(u32, Edit); 5] = [
+        (40, |i| i.current_adc = 4095),
+        (40, |i| i.current_adc = 2048 + 1900),
+        (40, |i| {
+            i.link_encoder = i.link_encoder.wrapping_add(700) & 4095
+        }),
+        (40, |i| i.gear_pot = Some(600)),
+        (40, |i| i.link_encoder = 2000),
+    ];
+    for (n, (at, edit)) in cases.into_iter().enumerate() {
+        let mut servo = Servo::new(&design, &config, &SupervisorConfig::DEFAULT).unwrap();
+        let mut fservo = FloatServo::new(&servo, &config);
+        let mut first = (None, None);
+        for tick in 0..80u32 {
+            let mut inp = TickInput {
+                link_encoder: 10,
+                gear_pot: Some(512),
+                current_adc: 2048,
+                read_error: None,
+            };
+            if tick >= at {
+                edit(&mut inp);
+            }
+            let o = servo.tick(&inp);
+            let f = fservo.tick(&inp);
+            first.0 = first.0.or(o.new_fault.map(|x| (x.code, x.tick)));
+            first.1 = first.1.or(f.new_fault.map(|x| (x.code, x.tick)));
+        }
+        assert!(first.0.is_some(), "case {n}: no fault");
+        assert_eq!(first.0, first.1, "case {n}");
+        assert_eq!(servo.faults(), fservo.faults(), "case {n}");
+    }
+}

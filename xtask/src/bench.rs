@@ -1,0 +1,548 @@
+//! `cargo xtask bench`: instruction counts, fixed point vs f32, footprint and stack
+//! (issue 7).
+//!
+//! For each emulated board it builds the `vsa-bench` crate's binaries in release and
+//! - runs `vsa-bench` under QEMU at `-icount shift=`[`BENCH_SHIFT`]: one instruction takes
+//!   2^shift ns of virtual time and SysTick counts the core clock, so
+//!   `2^shift·f_sysclk/10⁹` SysTick counts are one instruction (QEMU has no cycle counter);
+//!   the firmware logs the counts of each benchmark (`bench/src/main.rs` says what each
+//!   one times and over which inputs), this converts them;
+//! - reads the footprint of `vsa-control-only` (the control loop without the simulated
+//!   actuator) from its ELF;
+//! - runs the real firmware's step sweep and reads its stack high-water mark (the firmware
+//!   paints its stack at boot and logs `stack: high-water …` when the scenario ends) and
+//!   its own in-situ control-step count;
+//!
+//! and reads the footprint of the firmware with the simulated actuator and of the
+//! Nucleo-F446RE firmware. It prints markdown tables and writes
+//! `target/bench/report.json`.
+
+use anyhow::{bail, Context, Result};
+use object::{Object, ObjectSection, SectionFlags, SectionKind};
+use serde_json::{json, Map, Value};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use crate::board::Board;
+use crate::cmd::{cargo, run_status, target_dir};
+use crate::{firmware, qemu, scenarios, setup, test};
+use plant::scenario::ScenarioId;
+
+/// icount shift of the benchmark runs: 128 ns per instruction, so 21.5 (M4, 168 MHz) and
+/// 15.4 (M3, 120 MHz) SysTick counts per instruction.
+pub const BENCH_SHIFT: u32 = 7;
+
+/// The benchmarks `vsa-bench` logs, with their row labels.
+pub const BENCHES: [(&str, &str); 12] = [
+    (
+        "control_step",
+        "control step: sensors → servo (controller + supervisor) → H-bridge",
+    ),
+    ("control_step_f32", "control step, f32 port"),
+    ("controller", "controller alone (`Controller::step`)"),
+    ("controller_f32", "controller alone, f32 port"),
+    ("stiffness", "stiffness k(L) (`Design::stiffness`)"),
+    ("stiffness_f32", "k(L), f32"),
+    ("inverse", "inverse L(k) (`Design::clutch_length`)"),
+    ("inverse_f32", "L(k), f32 (`libm::cbrtf`)"),
+    ("capacity", "capacity τ_cap(L) (`Design::torque_capacity`)"),
+    (
+        "capacity_check",
+        "capacity check \\|τ̂\\| ≤ τ_cap (`Setting::within_capacity`)",
+    ),
+    (
+        "telemetry",
+        "telemetry encoding (`protocol::encode_telemetry`)",
+    ),
+    (
+        "tick_overhead",
+        "RTIC tick overhead (empty SysTick task, whole interrupt)",
+    ),
+];
+
+/// One benchmark's result, instructions per call.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Insns {
+    /// Calls measured.
+    pub n: u64,
+    /// Mean.
+    pub mean: f64,
+    /// Largest.
+    pub max: f64,
+}
+
+/// ELF section sizes, bytes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Footprint {
+    /// `.vector_table` + `.text`.
+    pub text: u64,
+    /// `.rodata` (and any other read-only allocated section in flash).
+    pub rodata: u64,
+    /// `.data` (its initial values are in flash too).
+    pub data: u64,
+    /// `.bss`.
+    pub bss: u64,
+    /// `.uninit` (RTIC's resources and queues, not zeroed at boot).
+    pub uninit: u64,
+}
+
+impl Footprint {
+    /// Flash: text + rodata + data.
+    pub fn flash(&self) -> u64 {
+        self.text + self.rodata + self.data
+    }
+
+    /// Static RAM: data + bss + uninit.
+    pub fn static_ram(&self) -> u64 {
+        self.data + self.bss + self.uninit
+    }
+}
+
+/// Sizes of the allocated sections of `elf`: executable ones are text, writable ones with
+/// contents data, writable ones without (NOBITS) bss or `.uninit`, the rest rodata.
+pub fn footprint(elf: &Path) -> Result<Footprint> {
+    let bytes = std::fs::read(elf).with_context(|| format!("reading {}", elf.display()))?;
+    let file =
+        object::File::parse(&*bytes).with_context(|| format!("parsing {}", elf.display()))?;
+    let mut f = Footprint::default();
+    for section in file.sections() {
+        let SectionFlags::Elf { sh_flags } = section.flags() else {
+            bail!("{} is not an ELF file", elf.display());
+        };
+        const SHF_WRITE: u64 = 0x1;
+        const SHF_ALLOC: u64 = 0x2;
+        const SHF_EXECINSTR: u64 = 0x4;
+        if sh_flags & SHF_ALLOC == 0 || section.size() == 0 {
+            continue;
+        }
+        let size = section.size();
+        let name = section.name().unwrap_or("");
+        if section.kind() == SectionKind::UninitializedData || name.starts_with(".bss") {
+            if name.starts_with(".uninit") {
+                f.uninit += size;
+            } else {
+                f.bss += size;
+            }
+        } else if sh_flags & SHF_EXECINSTR != 0 || name == ".vector_table" {
+            f.text += size;
+        } else if sh_flags & SHF_WRITE != 0 {
+            f.data += size;
+        } else {
+            f.rodata += size;
+        }
+    }
+    Ok(f)
+}
+
+/// Builds `bin` of `vsa-bench` for `board` in release; returns a copy of the ELF at
+/// `target/bench/<board>-<bin>.elf`.
+pub fn build(board: Board, bin: &str) -> Result<PathBuf> {
+    let mut cmd = cargo();
+    cmd.args(["build", "--release", "--package", "vsa-bench", "--bin", bin])
+        .args(board.cargo_args());
+    run_status(&mut cmd).with_context(|| format!("building {bin} for {}", board.feature()))?;
+    let built = target_dir().join(board.target()).join("release").join(bin);
+    let dir = target_dir().join("bench");
+    std::fs::create_dir_all(&dir)?;
+    let elf = dir.join(format!("{}-{bin}.elf", board.feature()));
+    std::fs::copy(&built, &elf)
+        .with_context(|| format!("copying {} to {}", built.display(), elf.display()))?;
+    Ok(elf)
+}
+
+fn after<'a>(line: &'a str, key: &str) -> Option<&'a str> {
+    let rest = &line[line.find(key)? + key.len()..];
+    let end = rest
+        .find(|c: char| !c.is_ascii_digit())
+        .unwrap_or(rest.len());
+    Some(&rest[..end])
+}
+
+/// `bench NAME: n N, sum S, min A, max B counts` → (NAME, N, S, B).
+pub fn parse_bench_line(line: &str) -> Option<(String, u64, u64, u64)> {
+    let rest = &line[line.find("bench ")? + 6..];
+    let (name, rest) = rest.split_once(": n ")?;
+    if name.contains(' ') {
+        return None;
+    }
+    let n = after(rest, "")?.parse().ok()?;
+    let sum = after(rest, "sum ")?.parse().ok()?;
+    let max = after(rest, "max ")?.parse().ok()?;
+    Some((name.to_owned(), n, sum, max))
+}
+
+/// What one `vsa-bench` run reported.
+#[derive(Debug, Default)]
+pub struct BenchRun {
+    /// Core clock the board reported, Hz.
+    pub sysclk_hz: u64,
+    /// Results by benchmark name, instructions.
+    pub results: BTreeMap<String, Insns>,
+    /// The f32-vs-fixed closed-loop agreement line.
+    pub agreement: Option<String>,
+}
+
+/// Parses a `vsa-bench` log run at icount `shift`.
+pub fn parse_run(lines: &[String], shift: u32) -> Result<BenchRun> {
+    let mut run = BenchRun::default();
+    for line in lines {
+        if let Some(hz) = line
+            .find("bench board ")
+            .and_then(|_| after(line, "sysclk "))
+        {
+            run.sysclk_hz = hz.parse().context("sysclk")?;
+        }
+        if line.contains("bench f32 port vs fixed point") {
+            let start = line.find("bench f32").unwrap_or(0);
+            let text = &line[start + 6..];
+            let text = text.split("  (").next().unwrap_or(text);
+            run.agreement = Some(text.to_owned());
+        }
+    }
+    if run.sysclk_hz == 0 {
+        bail!("no `bench board …: sysclk … Hz` line");
+    }
+    // SysTick counts per instruction: 2^shift ns per instruction at f_sysclk.
+    let per_insn = (run.sysclk_hz as f64) * f64::from(1u32 << shift) / 1e9;
+    for line in lines {
+        if let Some((name, n, sum, max)) = parse_bench_line(line) {
+            let mean = if n == 0 { 0.0 } else { sum as f64 / n as f64 };
+            run.results.insert(
+                name,
+                Insns {
+                    n,
+                    mean: mean / per_insn,
+                    max: max as f64 / per_insn,
+                },
+            );
+        }
+    }
+    for (name, _) in BENCHES.iter() {
+        if !run.results.contains_key(*name) {
+            bail!("no `bench {name}: …` line in the log");
+        }
+    }
+    if !lines.iter().any(|l| l.contains("bench done")) {
+        bail!("no `bench done` line");
+    }
+    Ok(run)
+}
+
+/// Builds and runs `vsa-bench` on `board`.
+pub fn run_bench(board: Board, echo: bool) -> Result<BenchRun> {
+    let elf = build(board, "vsa-bench")?;
+    let outcome = qemu::run_with_shift(
+        board,
+        &elf,
+        &[],
+        BENCH_SHIFT,
+        test::wall_limit(30),
+        |line| {
+            if echo {
+                println!("[{} bench] {line}", board.feature())
+            }
+        },
+    )?;
+    if outcome.exit_code != 0 || outcome.malformed_frames != 0 {
+        bail!(
+            "vsa-bench on {} exited with {} ({} malformed defmt frames)",
+            board.feature(),
+            outcome.exit_code,
+            outcome.malformed_frames
+        );
+    }
+    parse_run(&outcome.lines, BENCH_SHIFT)
+}
+
+/// `stack: high-water N bytes of M bytes (boot B, running R)` → (N, M, B, R).
+pub fn parse_stack(lines: &[String]) -> Option<(u64, u64, u64, u64)> {
+    let line = lines.iter().find(|l| l.contains("stack: high-water "))?;
+    let n = |key: &str| after(line, key)?.parse().ok();
+    Some((
+        n("stack: high-water ")?,
+        n(" bytes of ")?,
+        n("(boot ")?,
+        n(", running ")?,
+    ))
+}
+
+/// What the real firmware's step sweep on one board gave.
+struct FirmwareRun {
+    footprint: Footprint,
+    stack: (u64, u64, u64, u64),
+    step: (u64, u64),
+}
+
+fn run_firmware(board: Board) -> Result<FirmwareRun> {
+    let elf = firmware::build(board)?;
+    let id = ScenarioId::StepSweep;
+    let outcome = qemu::run(
+        board,
+        &elf,
+        &scenarios::firmware_args(id),
+        test::wall_limit(15),
+        |_| {},
+    )?;
+    scenarios::check(id, &outcome)
+        .with_context(|| format!("the step sweep on {}", board.feature()))?;
+    Ok(FirmwareRun {
+        footprint: footprint(&elf)?,
+        stack: parse_stack(&outcome.lines)
+            .with_context(|| format!("no `stack: high-water` line from {}", board.feature()))?,
+        step: scenarios::parse_step_insns(&outcome.lines)
+            .context("no `control step:` line from the firmware")?,
+    })
+}
+
+fn fmt_bytes(b: u64) -> String {
+    format!("{b} ({:.1} KiB)", b as f64 / 1024.0)
+}
+
+/// Runs everything and prints the report.
+pub fn run() -> Result<()> {
+    setup::ensure_targets()?;
+    setup::ensure_qemu()?;
+    let boards = [Board::QemuM4, Board::QemuM3];
+    let mut benches = Vec::new();
+    let mut controls = Vec::new();
+    let mut firmwares = Vec::new();
+    for board in boards {
+        eprintln!("xtask: benchmarks on {}", board.feature());
+        benches.push(run_bench(board, false)?);
+        controls.push(footprint(&build(board, "vsa-control-only")?)?);
+        eprintln!(
+            "xtask: the firmware's step sweep on {} (stack)",
+            board.feature()
+        );
+        firmwares.push(run_firmware(board)?);
+    }
+    let nucleo = footprint(&firmware::build(Board::NucleoF446re)?)?;
+
+    let md = markdown(&boards, &benches, &controls, &firmwares, &nucleo);
+    println!("{md}");
+
+    let mut report = Map::new();
+    report.insert("icount_shift".into(), json!(BENCH_SHIFT));
+    for (i, board) in boards.iter().enumerate() {
+        let mut b = Map::new();
+        for (name, r) in &benches[i].results {
+            b.insert(format!("{name}_insns_mean"), json!(r.mean.round() as u64));
+            b.insert(format!("{name}_insns_max"), json!(r.max.round() as u64));
+        }
+        let get = |k: &str| benches[i].results.get(k).map(|r| r.max.round() as u64);
+        b.insert("stiffness_insns".into(), json!(get("stiffness")));
+        b.insert("inverse_insns".into(), json!(get("inverse")));
+        b.insert("flash_bytes".into(), json!(controls[i].flash()));
+        b.insert("static_ram_bytes".into(), json!(controls[i].static_ram()));
+        b.insert("stack_bytes".into(), json!(firmwares[i].stack.0));
+        b.insert("stack_size_bytes".into(), json!(firmwares[i].stack.1));
+        b.insert("stack_boot_bytes".into(), json!(firmwares[i].stack.2));
+        b.insert("stack_running_bytes".into(), json!(firmwares[i].stack.3));
+        b.insert(
+            "firmware_flash_bytes".into(),
+            json!(firmwares[i].footprint.flash()),
+        );
+        b.insert(
+            "firmware_static_ram_bytes".into(),
+            json!(firmwares[i].footprint.static_ram()),
+        );
+        b.insert(
+            "firmware_step_sweep_control_step_insns_mean".into(),
+            json!(firmwares[i].step.0),
+        );
+        b.insert(
+            "firmware_step_sweep_control_step_insns_max".into(),
+            json!(firmwares[i].step.1),
+        );
+        report.insert(board.feature().into(), Value::Object(b));
+    }
+    report.insert(
+        Board::NucleoF446re.feature().into(),
+        json!({
+            "flash_bytes": nucleo.flash(),
+            "static_ram_bytes": nucleo.static_ram(),
+            "stack_bytes": null,
+        }),
+    );
+    let dir = target_dir().join("bench");
+    std::fs::create_dir_all(&dir)?;
+    let path = dir.join("report.json");
+    std::fs::write(
+        &path,
+        serde_json::to_string_pretty(&Value::Object(report))? + "\n",
+    )
+    .with_context(|| format!("writing {}", path.display()))?;
+    println!("Written: {}", path.display());
+    Ok(())
+}
+
+fn markdown(
+    boards: &[Board],
+    benches: &[BenchRun],
+    controls: &[Footprint],
+    firmwares: &[FirmwareRun],
+    nucleo: &Footprint,
+) -> String {
+    let mut s = String::new();
+    let mut head = String::from("| instructions per call |");
+    let mut rule = String::from("|---|");
+    for b in boards {
+        head.push_str(&format!(" {0} mean | {0} max |", b.feature()));
+        rule.push_str("---:|---:|");
+    }
+    s.push_str(&format!("{head}\n{rule}\n"));
+    let cell = |r: Option<&Insns>| match r {
+        Some(r) => format!(" {:.0} | {:.0} |", r.mean, r.max),
+        None => " – | – |".to_owned(),
+    };
+    for (name, label) in BENCHES.iter() {
+        let mut row = format!("| {label} |");
+        for run in benches {
+            row.push_str(&cell(run.results.get(*name)));
+        }
+        s.push_str(&row);
+        s.push('\n');
+        if let Some(fixed) = name.strip_suffix("_f32") {
+            let mut row = format!("| ↳ fixed/f32 ({fixed}) |");
+            for run in benches {
+                match (run.results.get(fixed), run.results.get(*name)) {
+                    (Some(a), Some(b)) if b.mean > 0.0 && b.max > 0.0 => {
+                        row.push_str(&format!(" {:.2} | {:.2} |", a.mean / b.mean, a.max / b.max))
+                    }
+                    _ => row.push_str(" – | – |"),
+                }
+            }
+            s.push_str(&row);
+            s.push('\n');
+        }
+    }
+    let mut row = String::from("| firmware step sweep, control step in situ (icount shift 3) |");
+    for f in firmwares {
+        row.push_str(&format!(" {} | {} |", f.step.0, f.step.1));
+    }
+    s.push_str(&row);
+    s.push('\n');
+    if let Some(a) = benches.first().and_then(|b| b.agreement.as_ref()) {
+        s.push_str(&format!("\n{a}\n"));
+    }
+
+    s.push_str("\n| image | board | flash (text + rodata + data) | static RAM (data + bss + uninit) | stack high-water |\n|---|---|---:|---:|---:|\n");
+    for (i, b) in boards.iter().enumerate() {
+        s.push_str(&format!(
+            "| control loop only, no plant (`vsa-control-only`) | {} | {} | {} | – |\n",
+            b.feature(),
+            fmt_bytes(controls[i].flash()),
+            fmt_bytes(controls[i].static_ram())
+        ));
+    }
+    for (i, b) in boards.iter().enumerate() {
+        let f = &firmwares[i];
+        s.push_str(&format!(
+            "| firmware with the simulated actuator (`vsa-firmware`, step sweep) | {} | {} | {} | {} of {} (boot {}, running {}) |\n",
+            b.feature(),
+            fmt_bytes(f.footprint.flash()),
+            fmt_bytes(f.footprint.static_ram()),
+            f.stack.0,
+            f.stack.1,
+            f.stack.2,
+            f.stack.3
+        ));
+    }
+    s.push_str(&format!(
+        "| firmware (`vsa-firmware`, real board) | nucleo-f446re | {} | {} | – (no board here) |\n",
+        fmt_bytes(nucleo.flash()),
+        fmt_bytes(nucleo.static_ram())
+    ));
+
+    // The issue's targets, checked.
+    let at = |b: Board| boards.iter().position(|x| *x == b);
+    let (m3, m4) = (at(Board::QemuM3), at(Board::QemuM4));
+    let r = |i: Option<usize>, name: &str| i.and_then(|i| benches[i].results.get(name)).copied();
+    let ratio = match (r(m3, "control_step"), r(m3, "control_step_f32")) {
+        (Some(a), Some(b)) if a.mean > 0.0 => Some(b.mean / a.mean),
+        _ => None,
+    };
+    let m4c = m4.map(|i| controls[i]);
+    let kib = 1024.0;
+    let rows: [(&str, Option<f64>, f64, &str); 7] = [
+        (
+            "qemu-m3 control step ≤ 2000 instructions (max)",
+            r(m3, "control_step").map(|x| x.max),
+            2000.0,
+            "",
+        ),
+        (
+            "qemu-m3 control step f32/fixed ≥ 3 (mean; as a bound: fixed/f32 ≤ 1/3)",
+            ratio.map(|x| 1.0 / x),
+            1.0 / 3.0,
+            "",
+        ),
+        (
+            "qemu-m3 k(L) ≤ 150 instructions (max)",
+            r(m3, "stiffness").map(|x| x.max),
+            150.0,
+            "",
+        ),
+        (
+            "qemu-m3 L(k) ≤ 600 instructions (max)",
+            r(m3, "inverse").map(|x| x.max),
+            600.0,
+            "",
+        ),
+        (
+            "qemu-m4 control-only flash ≤ 48 KiB",
+            m4c.map(|c| c.flash() as f64),
+            48.0 * kib,
+            " B",
+        ),
+        (
+            "qemu-m4 control-only static RAM ≤ 8 KiB",
+            m4c.map(|c| c.static_ram() as f64),
+            8.0 * kib,
+            " B",
+        ),
+        (
+            "qemu-m4 firmware stack ≤ 4 KiB (step-sweep high-water)",
+            m4.map(|i| firmwares[i].stack.0 as f64),
+            4.0 * kib,
+            " B",
+        ),
+    ];
+    let mut t = String::from("\n| target | measured | met |\n|---|---:|:---:|\n");
+    for (what, value, limit, unit) in rows {
+        let (v, met) = match value {
+            Some(v) if limit < 1.0 => (
+                format!("f32/fixed = {:.2}", 1.0 / v),
+                if v <= limit { "yes" } else { "no" },
+            ),
+            Some(v) => (
+                format!("{v:.0}{unit}"),
+                if v <= limit { "yes" } else { "no" },
+            ),
+            None => ("–".to_owned(), "–"),
+        };
+        t.push_str(&format!("| {what} | {v} | {met} |\n"));
+    }
+    s.push_str(&t);
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bench_lines_parse() {
+        let line = "           PRINT bench control_step: n 10000, sum 19087220, min 1579, max 2868 counts  (bench/src/main.rs:110)";
+        assert_eq!(
+            parse_bench_line(line),
+            Some(("control_step".to_owned(), 10000, 19_087_220, 2868))
+        );
+        assert_eq!(parse_bench_line("bench board qemu-m4: sysclk 1 Hz"), None);
+        let lines = vec![
+            "x INFO  stack: high-water 2312 bytes of 113960 bytes (boot 2312, running 800)  (f.rs:1)"
+                .to_owned(),
+        ];
+        assert_eq!(parse_stack(&lines), Some((2312, 113_960, 2312, 800)));
+    }
+}
