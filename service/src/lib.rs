@@ -35,38 +35,24 @@ use rtic_core::Mutex;
 
 use fixed::types::I32F32;
 
-/// One unit in I32F32 bits.
-const Q32: i64 = 1 << 32;
-
 /// Over-current trip above the live current limit, A: the supervisor trips this far above
 /// the clamp the controller holds (the defaults: 1.5 A clamp, 1.75 A trip).
 pub const TRIP_ABOVE_LIMIT_A: I32F32 = I32F32::lit("0.25");
 
-/// `x·num/den` rounded to the nearest integer (ties away from zero), in i128: exact for
-/// every i64 `x` and the small positive constants used here.
-const fn scale_round(x: i128, num: i128, den: i128) -> i128 {
-    let p = x * num;
-    if p >= 0 {
-        (p + den / 2) / den
-    } else {
-        (p - den / 2) / den
-    }
-}
-
-/// Saturates an i128 into i32.
-const fn sat_i32(v: i128) -> i32 {
-    if v > i32::MAX as i128 {
+/// Saturates an i64 into i32.
+const fn sat_i32(v: i64) -> i32 {
+    if v > i32::MAX as i64 {
         i32::MAX
-    } else if v < i32::MIN as i128 {
+    } else if v < i32::MIN as i64 {
         i32::MIN
     } else {
         v as i32
     }
 }
 
-/// Saturates an i128 into u32 (negative → 0).
-const fn sat_u32(v: i128) -> u32 {
-    if v > u32::MAX as i128 {
+/// Saturates an i64 into u32 (negative → 0).
+const fn sat_u32(v: i64) -> u32 {
+    if v > u32::MAX as i64 {
         u32::MAX
     } else if v < 0 {
         0
@@ -75,37 +61,63 @@ const fn sat_u32(v: i128) -> u32 {
     }
 }
 
+/// I32F32 bits × `scale` / 2³², rounded half up, exactly: the integer part and the
+/// fraction (< 2³²) are scaled apart, so nothing overflows for `scale` ≤ 10⁶ and no
+/// division is needed (this runs per telemetry sample, in the control tick).
+const fn q32_scaled(bits: i64, scale: i64) -> i64 {
+    let int = bits >> 32; // floor
+    let frac = (bits & 0xFFFF_FFFF) as u64; // bits − int·2³², in [0, 2³²)
+    int * scale + ((frac * scale as u64 + (1 << 31)) >> 32) as i64
+}
+
 /// I32F32 bits (value × 2³² of a unit) → millionths of the unit, rounded, saturated to i32.
-/// E.g. rad → µrad, N·m → µN·m.
+/// E.g. rad → µrad, N·m → µN·m. Exact; shifts and multiplies only.
 #[must_use]
 pub const fn q32_to_micro(bits: i64) -> i32 {
-    sat_i32(scale_round(bits as i128, 1_000_000, Q32 as i128))
+    sat_i32(q32_scaled(bits, 1_000_000))
 }
 
 /// I32F32 bits → thousandths of the unit (A → mA, mm → µm), rounded, saturated to i32.
 #[must_use]
 pub const fn q32_to_milli(bits: i64) -> i32 {
-    sat_i32(scale_round(bits as i128, 1_000, Q32 as i128))
+    sat_i32(q32_scaled(bits, 1_000))
 }
 
-/// Millionths of a unit → I32F32 bits, rounded (µrad → rad, µN·m → N·m). Every i32 fits.
+/// `v`/`per` units → I32F32 bits, rounded half away from zero, saturated: the quotient
+/// and the remainder are converted apart, so nothing overflows.
+const fn to_q32(v: i64, per: i64) -> i64 {
+    let q = v / per;
+    let r = v % per; // |r| < per ≤ 10⁶: r·2³² fits
+    let frac = if r >= 0 {
+        ((r << 32) + per / 2) / per
+    } else {
+        ((r << 32) - per / 2) / per
+    };
+    match q.checked_mul(1 << 32) {
+        Some(int) => int.saturating_add(frac),
+        None if q < 0 => i64::MIN,
+        None => i64::MAX,
+    }
+}
+
+/// Millionths of a unit → I32F32 bits, rounded (µrad → rad, µN·m → N·m).
 #[must_use]
 pub const fn micro_to_q32(v: i64) -> i64 {
-    scale_round(v as i128, Q32 as i128, 1_000_000) as i64
+    to_q32(v, 1_000_000)
 }
 
-/// Thousandths of a unit → I32F32 bits, rounded (mA → A, µm → mm, ‰ → 1). Every value
-/// below 2.1e12 fits; larger ones saturate.
+/// Thousandths of a unit → I32F32 bits, rounded (mA → A, µm → mm, ‰ → 1); values beyond
+/// the I32F32 range saturate.
 #[must_use]
 pub const fn milli_to_q32(v: i64) -> i64 {
-    let b = scale_round(v as i128, Q32 as i128, 1_000);
-    if b > i64::MAX as i128 {
-        i64::MAX
-    } else if b < i64::MIN as i128 {
-        i64::MIN
-    } else {
-        b as i64
-    }
+    to_q32(v, 1_000)
+}
+
+/// k in N·m/rad (I64F64) → mN·m/rad, rounded half up, saturated (a multiply and a shift).
+#[must_use]
+pub fn stiffness_mnm(k: Stiffness) -> u32 {
+    let mnm = (k.to_bits().saturating_mul(1_000) + (1 << 63)) >> 64;
+    u32::try_from(mnm.max(0)).unwrap_or(u32::MAX)
 }
 
 /// A model fault code on the wire (same numbering; checked by the tests).
@@ -280,13 +292,8 @@ impl Actuator {
                 tick: f.tick,
             }),
             limits: self.limits,
-            clutch_length_um: sat_u32(i128::from(q32_to_milli(sched.setting().length().to_bits()))),
-            // k in N·m/rad (I64F64) → mN·m/rad, rounded.
-            stiffness_mnm_per_rad: sat_u32(scale_round(
-                sched.stiffness().to_bits() >> 32,
-                1_000,
-                Q32 as i128,
-            )),
+            clutch_length_um: sat_u32(i64::from(q32_to_milli(sched.setting().length().to_bits()))),
+            stiffness_mnm_per_rad: stiffness_mnm(sched.stiffness()),
             tick: servo.ticks(),
             moving: servo.controller().trajectory().is_moving(),
             telemetry_rate_hz: self.telemetry.rate_hz(),
