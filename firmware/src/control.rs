@@ -39,7 +39,7 @@ pub struct TickResult {
     /// SysTick counts the whole tick took.
     pub busy_counts: u32,
     /// The telemetry sample of this tick, if one is due.
-    pub telemetry: Option<crate::link::Sample>,
+    pub telemetry: Option<service::link::Sample>,
 }
 
 /// The per-tick state: the board's I/O and the world around it (the servo is in the

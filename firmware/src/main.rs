@@ -13,7 +13,7 @@
 //!    the host link into a bounded queue (a full queue loses the byte and counts it; the
 //!    frame then fails its CRC and gets an error reply) and pends `serial`.
 //! 1. `serial`: hardware task bound to EXTI1, pended by software (no EXTI line is used):
-//!    the host link (`link::Link`): decodes the protocol, applies each command to the
+//!    the host link (`service::link::Link`): decodes the protocol, applies each command to the
 //!    shared actuator under a lock — between two ticks — and answers; sends the telemetry
 //!    the control tick queued (a full queue drops the sample and counts it, never
 //!    blocking the tick). A pended interrupt runs again if pended while running, so no
@@ -45,7 +45,6 @@ compile_error!(
 
 mod board;
 mod control;
-mod link;
 mod report;
 mod run;
 mod stack;
@@ -55,12 +54,12 @@ mod timing;
 mod app {
     use crate::board;
     use crate::control::ControlLoop;
-    use crate::link::{Link, Sample, RX_QUEUE, TELEMETRY_QUEUE};
     use crate::report::{LogItem, Reporter};
     use crate::run::RunConfig;
     use crate::timing::{self, TickAccounting};
     use cortex_m::peripheral::{NVIC, SYST};
     use heapless::spsc::{Consumer, Producer, Queue};
+    use service::link::{Link, Sample, RX_QUEUE, TELEMETRY_QUEUE};
     use service::Actuator;
 
     /// Items waiting for the log task (a tick's worth of events several times over).
@@ -84,7 +83,7 @@ mod app {
         dropped: u32,
         reporter: Reporter,
         idle_mode: crate::run::IdleMode,
-        link: Link,
+        link: Link<'static, board::SerialTx>,
         serial_rx: board::SerialRx,
         rx_tx: Producer<'static, u8>,
         rx_lost: u32,

@@ -33,6 +33,8 @@ use protocol::{
 };
 use rtic_core::Mutex;
 
+pub mod link;
+
 use fixed::types::I32F32;
 
 /// Over-current trip above the live current limit, A: the supervisor trips this far above

@@ -1,15 +1,27 @@
-//! `vsa-control-only`: the firmware's 1 kHz control loop without the simulated actuator,
-//! for the footprint of the control code on an emulated board (`cargo xtask bench`).
+//! `vsa-control-only`: the firmware's 1 kHz control loop and host link without the
+//! simulated actuator, for the footprint of the control firmware on an emulated board
+//! (`cargo xtask bench`).
 //!
 //! The same parts as `vsa-firmware` minus the plant and the scenario harness: RTIC 2 with
 //! the SysTick-bound control task at priority 3 (sensors through the driver traits →
-//! `Servo::tick` → H-bridge driver, missed-deadline check), a bounded log queue drained by
-//! a priority-1 task into defmt (faults, a once-a-second report), defmt over semihosting.
+//! `Servo::tick` → H-bridge driver, missed-deadline check, telemetry sample), the host
+//! link (USART2 receive interrupt at priority 2, the firmware's own driver; the protocol
+//! handler and command service in a priority-1 task, `service::link`), a bounded log queue
+//! drained by a priority-1 task into defmt (faults, a once-a-second report), defmt over
+//! semihosting.
 //! The sensors read what `READINGS` holds (mid-scale: the actuator at rest), so
-//! the servo holds still; after two seconds the run ends with exit status 0.
+//! the servo holds still. At boot, `init` queues a few host requests as if they had
+//! arrived on USART2, handled from the tenth tick on (`SCRIPT`: stiffness, limits, gains, enable, a move, telemetry at
+//! 500 Hz), so that the link task's command path (the configuration maths) and the
+//! telemetry run and count in the stack's high-water mark; after two seconds the run ends
+//! with exit status 0.
 #![no_std]
 #![no_main]
 #![deny(missing_docs)]
+
+// The firmware's stack painting, the very source file.
+#[path = "../../../firmware/src/stack.rs"]
+mod stack;
 
 /// Link encoder, gear pot and current ADC readings the simulated channels present (read
 /// with volatile loads, as from a peripheral, so they are not constants to the compiler).
@@ -23,6 +35,26 @@ fn reading(i: usize) -> u16 {
         None => 0,
     }
 }
+
+/// The requests queued at boot (see the module docs).
+const SCRIPT: [protocol::Request; 7] = [
+    protocol::Request::SetStiffness {
+        stiffness_mnm_per_rad: 895_900,
+    },
+    protocol::Request::SetLimits(protocol::Limits::DEFAULT),
+    protocol::Request::SetGains(protocol::Gains {
+        kp: 2_000_000,
+        ki: 0,
+        kd: 10_000,
+    }),
+    protocol::Request::AutoGains,
+    protocol::Request::Enable,
+    protocol::Request::Move {
+        target_urad: 0,
+        duration_ms: 200,
+    },
+    protocol::Request::StreamTelemetry { rate_hz: 500 },
+];
 
 /// Control loop rate, Hz.
 const CONTROL_HZ: u32 = 1000;
@@ -40,28 +72,40 @@ mod app {
     use super::{reading, LogItem, CONTROL_HZ, RUN_SECONDS};
     use bench::board;
     use bench::io::Io;
-    use cortex_m::peripheral::{syst::SystClkSource, SCB};
+    use cortex_m::peripheral::{syst::SystClkSource, NVIC, SCB};
     use heapless::spsc::{Consumer, Producer, Queue};
     use model::control::{Command, Config};
     use model::servo::{BridgeDemand, Servo};
     use model::supervisor::SupervisorConfig;
     use model::{Design, Length};
+    use service::link::{Link, Sample, RX_QUEUE, TELEMETRY_QUEUE};
+    use service::{Actuator, Service};
 
     #[shared]
-    struct Shared {}
+    struct Shared {
+        actuator: Actuator,
+    }
 
     #[local]
     struct Local {
-        servo: Servo,
         io: Io,
+        link: Link<'static, board::SerialTx>,
+        serial_rx: board::SerialRx,
+        rx_tx: Producer<'static, u8>,
+        telemetry_tx: Producer<'static, Sample>,
         ticks: u32,
         overruns: u32,
         log_tx: Producer<'static, LogItem>,
         log_rx: Consumer<'static, LogItem>,
     }
 
-    #[init(local = [queue: Queue<LogItem, 16> = Queue::new()])]
+    #[init(local = [
+        queue: Queue<LogItem, 16> = Queue::new(),
+        rx_queue: Queue<u8, RX_QUEUE> = Queue::new(),
+        telemetry_queue: Queue<Sample, TELEMETRY_QUEUE> = Queue::new(),
+    ])]
     fn init(cx: init::Context) -> (Shared, Local) {
+        crate::stack::paint();
         let mut syst = cx.core.SYST;
         let design = Design::paper();
         let config = Config::paper(Length::from_int(3));
@@ -76,6 +120,20 @@ mod app {
             defmt::panic!("H-bridge driver refused the lines")
         };
         let (log_tx, log_rx) = cx.local.queue.split();
+        let (rx_tx, rx_rx) = cx.local.rx_queue.split();
+        let (telemetry_tx, telemetry_rx) = cx.local.telemetry_queue.split();
+        let (serial_rx, serial_tx) = board::Serial::start(cx.device.USART2, board::USART_BRR);
+        let service = Service::new(design, config, SupervisorConfig::DEFAULT);
+        let mut rx_tx = rx_tx;
+        for (seq, req) in (1..).zip(crate::SCRIPT) {
+            if let Ok(frame) = protocol::encode_to_vec(&protocol::Frame::new(seq, req)) {
+                for b in frame {
+                    let _ = rx_tx.enqueue(b);
+                }
+            }
+        }
+        // The link task takes them once running: `control_tick` pends it at tick 1.
+
         syst.set_clock_source(SystClkSource::Core);
         syst.set_reload(board::SYSCLK_HZ / CONTROL_HZ - 1);
         syst.clear_current();
@@ -87,10 +145,15 @@ mod app {
             board::SYSCLK_HZ
         );
         (
-            Shared {},
+            Shared {
+                actuator: Actuator::new(servo),
+            },
             Local {
-                servo,
                 io,
+                link: Link::new(service, rx_rx, telemetry_rx, serial_tx),
+                serial_rx,
+                rx_tx,
+                telemetry_tx,
                 ticks: 0,
                 overruns: 0,
                 log_tx,
@@ -100,20 +163,39 @@ mod app {
     }
 
     /// The 1 kHz control period.
-    #[task(binds = SysTick, priority = 3, local = [servo, io, ticks, overruns, log_tx])]
-    fn control_tick(cx: control_tick::Context) {
+    #[task(binds = SysTick, priority = 3, shared = [actuator], local = [io, ticks, overruns, log_tx, telemetry_tx])]
+    fn control_tick(mut cx: control_tick::Context) {
         let io = cx.local.io;
+        let overruns = cx.local.overruns;
+        let telemetry_tx = cx.local.telemetry_tx;
         io.present(reading(0), reading(1), reading(2));
-        let input = io.read_inputs();
-        let out = cx.local.servo.tick(&input);
-        io.drive(out.bridge);
-        let mut fault = out.new_fault;
-        if SCB::is_pendst_pending() {
-            *cx.local.overruns += 1;
-            if let Some(f) = cx.local.servo.deadline_missed(0) {
-                io.drive(BridgeDemand::Off);
-                fault = fault.or(Some(f));
+        let (fault, sampled) = cx.shared.actuator.lock(|a| {
+            let input = io.read_inputs();
+            let out = a.servo.tick(&input);
+            io.drive(out.bridge);
+            let mut fault = out.new_fault;
+            if SCB::is_pendst_pending() {
+                *overruns += 1;
+                if let Some(f) = a.servo.deadline_missed(0) {
+                    io.drive(BridgeDemand::Off);
+                    fault = fault.or(Some(f));
+                }
             }
+            let sampled = match a.after_tick(&input, &out) {
+                Some(sample) if telemetry_tx.enqueue(sample).is_err() => {
+                    a.telemetry.count_dropped();
+                    false
+                }
+                Some(_) => true,
+                None => false,
+            };
+            (fault, sampled)
+        });
+        // Tick 10: the requests queued at boot reach the link task (well after `idle`
+        // started, so their stack counts as running, not boot: `init` can take longer than
+        // a period, and the first tick then comes before `idle`).
+        if sampled || *cx.local.ticks == 9 {
+            NVIC::pend(board::pac::Interrupt::EXTI1);
         }
         *cx.local.ticks += 1;
         let tx = cx.local.log_tx;
@@ -123,11 +205,37 @@ mod app {
         if cx.local.ticks.is_multiple_of(CONTROL_HZ) {
             let _ = tx.enqueue(LogItem::Second {
                 second: *cx.local.ticks / CONTROL_HZ,
-                overruns: *cx.local.overruns,
+                overruns: *overruns,
             });
         }
         if !tx.is_empty() {
             let _ = log::spawn();
+        }
+    }
+
+    /// The host link's receive interrupt: queue the bytes, wake the link task.
+    #[task(binds = USART2, priority = 2, local = [serial_rx, rx_tx])]
+    fn uart_rx(cx: uart_rx::Context) {
+        while let Some(received) = cx.local.serial_rx.read() {
+            let _ = cx.local.rx_tx.enqueue(received.byte);
+        }
+        NVIC::pend(board::pac::Interrupt::EXTI1);
+    }
+
+    /// The host link: commands in, replies and telemetry out.
+    #[task(binds = EXTI1, priority = 1, shared = [actuator], local = [link])]
+    fn serial(mut cx: serial::Context) {
+        let link = cx.local.link;
+        let before = link.requests();
+        link.poll(&mut cx.shared.actuator);
+        if before < crate::SCRIPT.len() as u32 && link.requests() >= crate::SCRIPT.len() as u32 {
+            let refused = link.errors().total();
+
+            defmt::info!(
+                "host link: the {=u32} queued requests handled, {=u32} refused",
+                link.requests(),
+                refused
+            );
         }
     }
 
@@ -146,6 +254,14 @@ mod app {
                 LogItem::Second { second, overruns } => {
                     defmt::info!("second {=u32}: {=u32} overruns", second, overruns);
                     if second >= RUN_SECONDS {
+                        let st = crate::stack::high_water();
+                        defmt::info!(
+                            "stack: high-water {=u32} bytes of {=u32} bytes (boot {=u32}, running {=u32})",
+                            st.peak,
+                            st.size,
+                            st.boot,
+                            st.running
+                        );
                         board::exit(overruns == 0);
                     }
                 }
@@ -155,6 +271,7 @@ mod app {
 
     #[idle]
     fn idle(_: idle::Context) -> ! {
+        crate::stack::repaint_after_init();
         loop {
             cortex_m::asm::nop();
         }

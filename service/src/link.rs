@@ -1,7 +1,8 @@
-//! The host link's task side: protocol frames in (bytes the USART2 receive interrupt
+//! The host link's task side: protocol frames in (bytes the UART receive interrupt
 //! queued), one reply per frame out, and the telemetry samples the control tick queued.
 //!
-//! Runs in the `serial` task, below the control tick and the receive interrupt. Every
+//! The firmware runs it in its `serial` task, below the control tick and the receive
+//! interrupt, over the UART's transmitter (any [`embedded_io::Write`]). Every
 //! decoder result goes through [`protocol::Handler`]: bad frames and out-of-range requests
 //! change nothing but its error counters; good requests reach [`service::ServiceDevice`],
 //! which prepares configurations here and applies each command to the shared actuator
@@ -9,11 +10,11 @@
 //! byte is waiting, so replies go first; the control tick never waits for the link (a full
 //! queue drops the sample and counts it, `Status::telemetry_dropped`).
 
-use crate::board::SerialTx;
+use crate::{Actuator, Service};
+use embedded_io::Write;
 use heapless::spsc::Consumer;
 use protocol::{encode, telemetry_frame, Decoder, Frame, Handler, Reply, Request, MAX_FRAME};
-use rtic::Mutex;
-use service::{Actuator, Service};
+use rtic_core::Mutex;
 
 /// Bytes the receive interrupt can queue ahead of the link task (about 4 full frames).
 pub const RX_QUEUE: usize = 256;
@@ -24,24 +25,34 @@ pub const TELEMETRY_QUEUE: usize = 16;
 /// A telemetry sample and its sequence number (see [`protocol::Reply::Telemetry`]).
 pub type Sample = (u16, protocol::TelemetrySample);
 
-/// The link task's state.
-pub struct Link {
+/// The link task's state, over the transmitter `W`.
+pub struct Link<'q, W> {
     decoder: Decoder<Request>,
     handler: Handler,
     service: Service,
-    rx: Consumer<'static, u8>,
-    telemetry: Consumer<'static, Sample>,
-    tx: SerialTx,
-    encode_failures: u32,
+    rx: Consumer<'q, u8>,
+    telemetry: Consumer<'q, Sample>,
+    tx: W,
+    failures: LinkFailures,
 }
 
-impl Link {
+/// What the link could not send (saturating counters).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LinkFailures {
+    /// Frames that did not encode (never for this crate's messages).
+    pub encode: u32,
+    /// Frames the transmitter refused (partly sent: the host sees a bad frame).
+    pub transmit: u32,
+}
+
+impl<'q, W: Write> Link<'q, W> {
     /// A link over these queues and transmitter, applying commands through `service`.
     pub fn new(
         service: Service,
-        rx: Consumer<'static, u8>,
-        telemetry: Consumer<'static, Sample>,
-        tx: SerialTx,
+        rx: Consumer<'q, u8>,
+        telemetry: Consumer<'q, Sample>,
+        tx: W,
     ) -> Self {
         Self {
             decoder: Decoder::new(),
@@ -50,8 +61,28 @@ impl Link {
             rx,
             telemetry,
             tx,
-            encode_failures: 0,
+            failures: LinkFailures::default(),
         }
+    }
+
+    /// What could not be sent so far.
+    pub fn failures(&self) -> LinkFailures {
+        self.failures
+    }
+
+    /// Well-formed requests handled so far (carried out or refused).
+    pub fn requests(&self) -> u32 {
+        self.handler.requests()
+    }
+
+    /// The protocol's error counters.
+    pub fn errors(&self) -> &protocol::ErrorCounters {
+        self.handler.errors()
+    }
+
+    /// The transmitter (e.g. to read what a test transmitter collected).
+    pub fn tx(&self) -> &W {
+        &self.tx
     }
 
     /// Handles everything queued: received bytes first (a reply for each completed frame),
@@ -65,8 +96,8 @@ impl Link {
                 }
             } else if let Some((seq, sample)) = self.telemetry.dequeue() {
                 match telemetry_frame(seq, &sample) {
-                    Ok(frame) => self.tx.write_all(&frame),
-                    Err(_) => self.encode_failures = self.encode_failures.saturating_add(1),
+                    Ok(frame) => self.transmit(&frame),
+                    Err(_) => self.failures.encode = self.failures.encode.saturating_add(1),
                 }
             } else {
                 return;
@@ -77,8 +108,14 @@ impl Link {
     fn send(&mut self, reply: &Frame<Reply>) {
         let mut buf = [0u8; MAX_FRAME];
         match encode(reply, &mut buf) {
-            Ok(n) => self.tx.write_all(buf.get(..n).unwrap_or(&[])),
-            Err(_) => self.encode_failures = self.encode_failures.saturating_add(1),
+            Ok(n) => self.transmit(buf.get(..n).unwrap_or(&[])),
+            Err(_) => self.failures.encode = self.failures.encode.saturating_add(1),
+        }
+    }
+
+    fn transmit(&mut self, frame: &[u8]) {
+        if self.tx.write_all(frame).is_err() {
+            self.failures.transmit = self.failures.transmit.saturating_add(1);
         }
     }
 }
