@@ -36,25 +36,14 @@ fn reading(i: usize) -> u16 {
     }
 }
 
-/// The requests queued at boot (see the module docs).
-const SCRIPT: [protocol::Request; 7] = [
-    protocol::Request::SetStiffness {
-        stiffness_mnm_per_rad: 895_900,
-    },
-    protocol::Request::SetLimits(protocol::Limits::DEFAULT),
-    protocol::Request::SetGains(protocol::Gains {
-        kp: 2_000_000,
-        ki: 0,
-        kd: 10_000,
-    }),
-    protocol::Request::AutoGains,
-    protocol::Request::Enable,
-    protocol::Request::Move {
-        target_urad: 0,
-        duration_ms: 200,
-    },
-    protocol::Request::StreamTelemetry { rate_hz: 500 },
-];
+/// The host requests queued at boot, as frames on the wire (see the module docs): the
+/// number of requests, then their frames, encoded by `build.rs`.
+static SCRIPT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/script.bin"));
+
+/// The number of requests in [`SCRIPT`].
+fn script_requests() -> u32 {
+    SCRIPT.first().copied().map_or(0, u32::from)
+}
 
 /// Control loop rate, Hz.
 const CONTROL_HZ: u32 = 1000;
@@ -125,12 +114,8 @@ mod app {
         let (serial_rx, serial_tx) = board::Serial::start(cx.device.USART2, board::USART_BRR);
         let service = Service::new(design, config, SupervisorConfig::DEFAULT);
         let mut rx_tx = rx_tx;
-        for (seq, req) in (1..).zip(crate::SCRIPT) {
-            if let Ok(frame) = protocol::encode_to_vec(&protocol::Frame::new(seq, req)) {
-                for b in frame {
-                    let _ = rx_tx.enqueue(b);
-                }
-            }
+        for &b in crate::SCRIPT.get(1..).unwrap_or(&[]) {
+            let _ = rx_tx.enqueue(b);
         }
         // The link task takes them once running: `control_tick` pends it at tick 1.
 
@@ -228,7 +213,8 @@ mod app {
         let link = cx.local.link;
         let before = link.requests();
         link.poll(&mut cx.shared.actuator);
-        if before < crate::SCRIPT.len() as u32 && link.requests() >= crate::SCRIPT.len() as u32 {
+        let script = crate::script_requests();
+        if before < script && link.requests() >= script {
             let refused = link.errors().total();
 
             defmt::info!(
