@@ -11,8 +11,10 @@ use crate::board::{self, Io, World};
 use crate::timing;
 use cortex_m::peripheral::{SCB, SYST};
 use drivers::{AngleSensor, BridgeState, CurrentSensor};
+use heapless::spsc::Producer;
 use model::servo::{BridgeDemand, TickInput};
 use model::supervisor::{Fault, Sensor};
+use service::link::Sample;
 use service::Actuator;
 
 /// Per-tick cost accounting, SysTick counts (core clock).
@@ -38,8 +40,8 @@ pub struct TickResult {
     pub overran: bool,
     /// SysTick counts the whole tick took.
     pub busy_counts: u32,
-    /// The telemetry sample of this tick, if one is due.
-    pub telemetry: Option<service::link::Sample>,
+    /// A telemetry sample went into the link's queue in this tick.
+    pub sampled: bool,
 }
 
 /// The per-tick state: the board's I/O and the world around it (the servo is in the
@@ -123,14 +125,21 @@ impl ControlLoop {
     /// Runs one 1 ms control period of `actuator`'s servo. `entry` is the SysTick value
     /// when the interrupt handler started.
     #[inline(never)]
-    pub fn tick(&mut self, entry: u32, actuator: &mut Actuator) -> TickResult {
+    /// A telemetry sample, when due, goes into `telemetry` (a full queue drops and counts
+    /// it).
+    pub fn tick(
+        &mut self,
+        entry: u32,
+        actuator: &mut Actuator,
+        telemetry: &mut Producer<'_, Sample>,
+    ) -> TickResult {
         let plan = self.world.begin_tick(&mut self.io, &mut actuator.servo);
         let t1 = SYST::get_current();
         let input = self.read_inputs();
         let out = actuator.servo.tick(&input);
         self.drive(out.bridge);
         let t2 = SYST::get_current();
-        let telemetry = actuator.after_tick(&input, &out);
+        let sampled = actuator.publish_tick(&input, &out, telemetry);
         if plan.overrun {
             busy_wait_past_deadline();
         }
@@ -160,7 +169,7 @@ impl ControlLoop {
             fault: out.new_fault.or(late),
             overran,
             busy_counts,
-            telemetry,
+            sampled,
         }
     }
 }

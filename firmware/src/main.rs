@@ -152,16 +152,11 @@ mod app {
         let telemetry_tx = cx.local.telemetry_tx;
         // The highest priority: the lock costs nothing and the link task never holds it
         // across a tick.
-        let result = cx.shared.actuator.lock(|actuator| {
-            let result = control.tick(entry, actuator);
-            if let Some(sample) = result.telemetry {
-                if telemetry_tx.enqueue(sample).is_err() {
-                    actuator.telemetry.count_dropped();
-                }
-            }
-            result
-        });
-        if result.telemetry.is_some() {
+        let result = cx
+            .shared
+            .actuator
+            .lock(|actuator| control.tick(entry, actuator, telemetry_tx));
+        if result.sampled {
             NVIC::pend(board::pac::Interrupt::EXTI1);
         }
         timing::publish_tick(tick);

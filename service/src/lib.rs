@@ -248,6 +248,28 @@ impl Actuator {
         Some((seq, self.sample(input, out)))
     }
 
+    /// [`Actuator::after_tick`], and the sample (if one is due) into `queue`, the link's
+    /// telemetry queue: never waits; a full queue drops the sample and counts it
+    /// ([`TelemetryGate::dropped`], `Status::telemetry_dropped`; its sequence number is
+    /// skipped on the wire). Returns whether a sample was queued.
+    pub fn publish_tick(
+        &mut self,
+        input: &TickInput,
+        out: &TickOutput,
+        queue: &mut heapless::spsc::Producer<'_, link::Sample>,
+    ) -> bool {
+        match self.after_tick(input, out) {
+            Some(sample) => {
+                let queued = queue.enqueue(sample).is_ok();
+                if !queued {
+                    self.telemetry.count_dropped();
+                }
+                queued
+            }
+            None => false,
+        }
+    }
+
     /// The telemetry sample of a tick, in wire units.
     #[must_use]
     pub fn sample(&self, input: &TickInput, out: &TickOutput) -> TelemetrySample {

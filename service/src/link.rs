@@ -16,10 +16,12 @@ use heapless::spsc::Consumer;
 use protocol::{encode, telemetry_frame, Decoder, Frame, Handler, Reply, Request, MAX_FRAME};
 use rtic_core::Mutex;
 
-/// Bytes the receive interrupt can queue ahead of the link task (about 4 full frames).
+/// Size of the receive queue: a heapless `Queue<u8, RX_QUEUE>` holds `RX_QUEUE − 1` = 255
+/// bytes (about 4 full frames) ahead of the link task.
 pub const RX_QUEUE: usize = 256;
 
-/// Telemetry samples the control tick can queue ahead of the link task (32 ms at 500 Hz).
+/// Size of the telemetry queue: it holds `TELEMETRY_QUEUE − 1` = 15 samples (30 ms at
+/// 500 Hz) ahead of the link task.
 pub const TELEMETRY_QUEUE: usize = 16;
 
 /// A telemetry sample and its sequence number (see [`protocol::Reply::Telemetry`]).

@@ -116,3 +116,40 @@ fn a_refusing_transmitter_is_counted_not_fatal() {
     assert_eq!(link.failures().transmit, 3);
     assert!(link.tx().bytes.is_empty());
 }
+
+#[test]
+fn a_full_telemetry_queue_drops_counts_and_skips_sequence_numbers() {
+    use model::servo::TickInput;
+    let (mut actuator, mut service) = parts();
+    let mut tq: Queue<Sample, 4> = Queue::new(); // holds 3
+    let (mut t_in, mut t_out) = tq.split();
+    {
+        let mut dev = service.device(&mut actuator);
+        protocol::Device::set_telemetry_rate(&mut dev, 500).unwrap();
+    }
+    let a = &mut actuator.0;
+    let input = TickInput {
+        link_encoder: 0,
+        gear_pot: Some(512),
+        current_adc: 2048,
+        read_error: None,
+    };
+    // 20 ticks at 500 Hz: 10 samples due; the link takes none, so 3 queue, 7 drop.
+    let queued = (0..20)
+        .filter(|_| {
+            let out = a.servo.tick(&input);
+            a.publish_tick(&input, &out, &mut t_in)
+        })
+        .count();
+    assert_eq!(queued, 3);
+    assert_eq!(a.telemetry.dropped(), 7);
+    assert_eq!(a.status().telemetry_dropped, 7);
+    let seqs: Vec<u16> = std::iter::from_fn(|| t_out.dequeue().map(|(s, _)| s)).collect();
+    assert_eq!(seqs, [1, 2, 3]);
+    // The next queued sample carries the counter past the dropped ones.
+    let out = a.servo.tick(&input);
+    let out2 = a.servo.tick(&input);
+    let _ = a.publish_tick(&input, &out, &mut t_in);
+    assert!(a.publish_tick(&input, &out2, &mut t_in));
+    assert_eq!(t_out.dequeue().map(|(s, _)| s), Some(11));
+}

@@ -166,14 +166,7 @@ mod app {
                     fault = fault.or(Some(f));
                 }
             }
-            let sampled = match a.after_tick(&input, &out) {
-                Some(sample) if telemetry_tx.enqueue(sample).is_err() => {
-                    a.telemetry.count_dropped();
-                    false
-                }
-                Some(_) => true,
-                None => false,
-            };
+            let sampled = a.publish_tick(&input, &out, telemetry_tx);
             (fault, sampled)
         });
         // Tick 10: the requests queued at boot reach the link task (well after `idle`
