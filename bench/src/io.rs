@@ -4,76 +4,10 @@
 //! on the emulated boards (`firmware/src/board/sim.rs`): a sensor returns the value
 //! presented to it this tick, the PWM and GPIO lines remember what was written.
 
-use core::convert::Infallible;
-use drivers::{AngleSensor, BridgeState, CurrentSensor, HBridge, SensorError};
-use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
-use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
+pub use drivers::sim::{SimChannel, SimPin, SimPwm};
+use drivers::{AngleSensor, BridgeState, CurrentSensor, HBridge};
 use model::servo::{BridgeDemand, TickInput};
 use model::supervisor::Sensor;
-
-/// Simulated PWM channel: duty in ‰ of the period (max duty 1000).
-#[derive(Debug, Default)]
-pub struct SimPwm {
-    duty: u16,
-}
-
-impl PwmErrorType for SimPwm {
-    type Error = Infallible;
-}
-
-impl SetDutyCycle for SimPwm {
-    fn max_duty_cycle(&self) -> u16 {
-        1000
-    }
-
-    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> {
-        self.duty = duty.min(1000);
-        Ok(())
-    }
-}
-
-/// Simulated GPIO output.
-#[derive(Debug, Default)]
-pub struct SimPin {
-    high: bool,
-}
-
-impl PinErrorType for SimPin {
-    type Error = Infallible;
-}
-
-impl OutputPin for SimPin {
-    fn set_low(&mut self) -> Result<(), Infallible> {
-        self.high = false;
-        Ok(())
-    }
-
-    fn set_high(&mut self) -> Result<(), Infallible> {
-        self.high = true;
-        Ok(())
-    }
-}
-
-/// A simulated sensor channel with `FULL` counts: returns the value presented this tick.
-#[derive(Debug)]
-pub struct SimChannel<const FULL: u16> {
-    /// The reading the next read returns, counts.
-    pub value: u16,
-}
-
-impl<const FULL: u16> AngleSensor for SimChannel<FULL> {
-    const FULL_SCALE: u16 = FULL;
-
-    fn read_counts(&mut self) -> Result<u16, SensorError> {
-        Ok(self.value)
-    }
-}
-
-impl<const FULL: u16> CurrentSensor for SimChannel<FULL> {
-    fn read_raw(&mut self) -> Result<u16, SensorError> {
-        Ok(self.value)
-    }
-}
 
 /// The H-bridge on simulated lines.
 pub type Bridge = HBridge<SimPwm, SimPin, SimPin>;

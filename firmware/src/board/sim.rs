@@ -6,10 +6,8 @@
 //! as they are, applies the scenario's injections and actions, and presents the new
 //! readings to the sensors (`plant::scenario` has the per-tick protocol).
 
-use core::convert::Infallible;
-use drivers::{AngleSensor, CurrentSensor, HBridge, SensorError};
-use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
-use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
+use drivers::sim::{SimChannel, SimPin, SimPwm};
+use drivers::HBridge;
 use model::control::Config;
 use model::servo::{Servo, TickOutput};
 use model::supervisor::{Fault, SupervisorConfig};
@@ -17,68 +15,6 @@ use model::{Design, Length};
 use plant::scenario::{Action, BridgeLines, ScenarioEvent, ScenarioId, ScenarioRun};
 use plant::served::ServedActuator;
 use service::Service;
-
-/// Simulated PWM channel: the duty in ‰ of the period (max duty 1000).
-#[derive(Default)]
-pub struct SimPwm {
-    duty: u16,
-}
-
-impl PwmErrorType for SimPwm {
-    type Error = Infallible;
-}
-
-impl SetDutyCycle for SimPwm {
-    fn max_duty_cycle(&self) -> u16 {
-        1000
-    }
-
-    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> {
-        self.duty = duty.min(1000);
-        Ok(())
-    }
-}
-
-/// Simulated GPIO output.
-#[derive(Default)]
-pub struct SimPin {
-    high: bool,
-}
-
-impl PinErrorType for SimPin {
-    type Error = Infallible;
-}
-
-impl OutputPin for SimPin {
-    fn set_low(&mut self) -> Result<(), Infallible> {
-        self.high = false;
-        Ok(())
-    }
-
-    fn set_high(&mut self) -> Result<(), Infallible> {
-        self.high = true;
-        Ok(())
-    }
-}
-
-/// A simulated sensor channel: returns the value the plant presented this tick.
-pub struct SimChannel<const FULL: u16> {
-    value: u16,
-}
-
-impl<const FULL: u16> AngleSensor for SimChannel<FULL> {
-    const FULL_SCALE: u16 = FULL;
-
-    fn read_counts(&mut self) -> Result<u16, SensorError> {
-        Ok(self.value)
-    }
-}
-
-impl<const FULL: u16> CurrentSensor for SimChannel<FULL> {
-    fn read_raw(&mut self) -> Result<u16, SensorError> {
-        Ok(self.value)
-    }
-}
 
 /// Link magnetic encoder, 4096 counts per turn.
 pub type LinkEncoder = SimChannel<4096>;
@@ -120,9 +56,9 @@ impl Io {
     /// The bridge lines as the driver set them.
     pub fn lines(&self) -> BridgeLines {
         BridgeLines {
-            enabled: self.bridge.en().high,
-            forward: self.bridge.dir().high,
-            duty_permille: self.bridge.pwm().duty,
+            enabled: self.bridge.en().is_high(),
+            forward: self.bridge.dir().is_high(),
+            duty_permille: self.bridge.pwm().duty(),
         }
     }
 }
