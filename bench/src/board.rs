@@ -1,9 +1,6 @@
 //! The emulated boards the bench binaries run on (as `firmware/src/board/qemu.rs`): the
-//! device crate RTIC binds to, the fixed core clock, defmt over semihosting, the exit
-//! status and the panic handler.
-
-use core::sync::atomic::{AtomicBool, Ordering};
-use defmt_semihosting as _;
+//! device crate RTIC binds to, the fixed core clock, the USART2 driver, and (the firmware's
+//! own source files) the exit status and panic handlers.
 
 #[cfg(not(any(feature = "qemu-m4", feature = "qemu-m3")))]
 compile_error!("no board selected: build with `qemu-m4` (default) or `qemu-m3`");
@@ -41,30 +38,7 @@ pub use serial::{Serial, SerialRx, SerialTx};
 /// USART2's baud-rate divider (QEMU ignores it; 115 200 Bd at 42 MHz for the record).
 pub const USART_BRR: u16 = 365;
 
-/// Ends the emulation with status 0 (`passed`) or 1.
-pub fn exit(passed: bool) -> ! {
-    semihosting::process::exit(if passed { 0 } else { 1 })
-}
-
-/// Logs the panic once, then makes QEMU exit with failure.
-#[panic_handler]
-fn panic(info: &core::panic::PanicInfo) -> ! {
-    static PANICKING: AtomicBool = AtomicBool::new(false);
-    cortex_m::interrupt::disable();
-    if !PANICKING.swap(true, Ordering::Relaxed) {
-        let (file, line) = info.location().map_or(("?", 0), |l| (l.file(), l.line()));
-        defmt::error!(
-            "panic: {} ({=str}:{=u32})",
-            defmt::Display2Format(&info.message()),
-            file,
-            line
-        );
-    }
-    exit(false)
-}
-
-/// defmt's own `panic!`/`unwrap!` end up here.
-#[defmt::panic_handler]
-fn defmt_panic() -> ! {
-    exit(false)
-}
+// The emulated firmware's exit and panic handlers, the very source file.
+#[path = "../../firmware/src/board/semihosting_exit.rs"]
+mod semihosting_exit;
+pub use semihosting_exit::exit;

@@ -194,8 +194,8 @@ mod app {
     /// The host link's receive interrupt: queue the bytes, wake the link task.
     #[task(binds = USART2, priority = 2, local = [serial_rx, rx_tx])]
     fn uart_rx(cx: uart_rx::Context) {
-        while let Some(received) = cx.local.serial_rx.read() {
-            let _ = cx.local.rx_tx.enqueue(received.byte);
+        while let Some(byte) = cx.local.serial_rx.read() {
+            let _ = cx.local.rx_tx.enqueue(byte);
         }
         NVIC::pend(board::pac::Interrupt::EXTI1);
     }

@@ -10,7 +10,11 @@ mod qemu;
 #[cfg(any(feature = "qemu-m4", feature = "qemu-m3"))]
 pub use qemu::*;
 #[cfg(any(feature = "qemu-m4", feature = "qemu-m3"))]
+mod semihosting_exit;
+#[cfg(any(feature = "qemu-m4", feature = "qemu-m3"))]
 mod sim;
+#[cfg(any(feature = "qemu-m4", feature = "qemu-m3"))]
+pub use semihosting_exit::exit;
 #[cfg(any(feature = "qemu-m4", feature = "qemu-m3"))]
 pub use sim::*;
 

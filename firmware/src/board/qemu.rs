@@ -29,10 +29,8 @@
 //! boards therefore idle in a spin loop by default, which keeps both the rate and the
 //! determinism. Reproduce with `cargo xtask run --idle wfi` (the self-check fails).
 
-use super::{IndependentClock, Parts};
+use super::{exit, IndependentClock, Parts};
 use crate::run::{IdleMode, RunConfig};
-use core::sync::atomic::{AtomicBool, Ordering};
-use defmt_semihosting as _;
 
 #[cfg(feature = "qemu-m4")]
 pub use stm32f4::stm32f405 as pac;
@@ -98,37 +96,4 @@ pub fn run_config() -> RunConfig {
             exit(false)
         }
     }
-}
-
-/// Ends the emulation with status 0 (`passed`) or 1.
-pub fn exit(passed: bool) -> ! {
-    semihosting::process::exit(if passed { 0 } else { 1 })
-}
-
-/// Logs the panic once, then makes QEMU exit with failure.
-///
-/// Interrupts are masked first so the control task cannot start another defmt frame.
-/// If the panic came from inside the logger itself (a frame half written), logging
-/// again would panic again: the second entry skips straight to the exit, and the
-/// decoder on the host drops the half frame.
-#[panic_handler]
-fn panic(info: &core::panic::PanicInfo) -> ! {
-    static PANICKING: AtomicBool = AtomicBool::new(false);
-    cortex_m::interrupt::disable();
-    if !PANICKING.swap(true, Ordering::Relaxed) {
-        let (file, line) = info.location().map_or(("?", 0), |l| (l.file(), l.line()));
-        defmt::error!(
-            "panic: {} ({=str}:{=u32})",
-            defmt::Display2Format(&info.message()),
-            file,
-            line
-        );
-    }
-    exit(false)
-}
-
-/// defmt's own `panic!`/`unwrap!` end up here.
-#[defmt::panic_handler]
-fn defmt_panic() -> ! {
-    exit(false)
 }

@@ -49,15 +49,6 @@ impl Serial {
     }
 }
 
-/// What one receive-register read gave.
-pub struct Received {
-    /// The byte.
-    pub byte: u8,
-    /// Bytes were lost before it (overrun: the receive register was not read in time), or
-    /// it arrived with a framing or noise error.
-    pub error: bool,
-}
-
 /// The receive half of [`Serial`] (the receive interrupt's).
 pub struct SerialRx {
     usart: pac::USART2,
@@ -65,15 +56,16 @@ pub struct SerialRx {
 
 impl SerialRx {
     /// The next received byte, if any. Reading SR then DR also clears an overrun, so the
-    /// interrupt cannot keep firing on a stuck error flag.
-    pub fn read(&mut self) -> Option<Received> {
+    /// interrupt cannot keep firing on a stuck error flag. A byte lost to an overrun, or
+    /// taken with a framing or noise error, is not flagged here: the frame it belongs to
+    /// fails its COBS or CRC check and is counted and answered by the protocol handler.
+    pub fn read(&mut self) -> Option<u8> {
         let sr = self.usart.sr().read();
         let error = sr.ore().bit_is_set() || sr.fe().bit_is_set() || sr.nf().bit_is_set();
         if !(sr.rxne().bit_is_set() || error) {
             return None;
         }
-        let byte = self.usart.dr().read().dr().bits() as u8;
-        Some(Received { byte, error })
+        Some(self.usart.dr().read().dr().bits() as u8)
     }
 }
 
