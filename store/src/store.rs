@@ -3,13 +3,17 @@
 use embassy_futures::block_on;
 use embedded_storage::nor_flash::NorFlash;
 use protocol::FaultRecord;
-use sequential_storage::cache::{Cache, Uncached};
+use sequential_storage::cache::key_pointers::ArrayKeyPointers;
+use sequential_storage::cache::page_pointers::ArrayPagePointers;
+use sequential_storage::cache::page_states::ArrayPageStates;
+use sequential_storage::cache::Cache;
 use sequential_storage::map::{MapConfig, MapStorage};
 use serde::{Deserialize, Serialize};
 
 use crate::blocking::Blocking;
 use crate::fault_log::{FaultLog, FAULT_LOG_LEN};
 use crate::records::{self, BusSettings, Calibration, Config, FaultEntry, Record, Rejection};
+use crate::PAGES;
 
 /// Map key of the record set.
 const SET_KEY: u8 = 1;
@@ -124,8 +128,8 @@ fn flash_fault<E>(e: &sequential_storage::Error<E>) -> FlashFault {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum StoreError {
-    /// The flash's geometry does not suit the map (fewer than 2 erase pages, or pages too
-    /// small): a board definition error.
+    /// The flash is not [`PAGES`] erase pages that each hold an item: a board definition
+    /// error.
     Layout,
     /// The flash failed.
     Flash(FlashFault),
@@ -227,7 +231,16 @@ struct SetBody<'a> {
 #[repr(align(4))]
 struct Work([u8; WORK_LEN]);
 
-type Map<F> = MapStorage<u8, Blocking<F>, Cache<Uncached, Uncached, Uncached, u8>>;
+/// Keys in use: the set and the fault-log slots.
+const KEYS: usize = 1 + FAULT_LOG_LEN;
+
+/// Page states, page pointers and the location of every key, in RAM (≈ 110 bytes): a
+/// lookup goes straight to its item instead of scanning pages, which matters most when a
+/// page is reclaimed (each item on it is looked up). Built afresh at every open.
+type MapCache =
+    Cache<ArrayPageStates<PAGES>, ArrayPagePointers<PAGES>, ArrayKeyPointers<u8, KEYS>, u8>;
+
+type Map<F> = MapStorage<u8, Blocking<F>, MapCache>;
 
 /// The settings store on one flash region (offsets `0..capacity`, whole erase pages).
 pub struct Store<F: NorFlash> {
@@ -244,14 +257,21 @@ impl<F: NorFlash> Store<F> {
     /// what the flash holds.
     ///
     /// # Errors
-    /// [`StoreError::Layout`] if the flash has fewer than two erase pages (or pages too
-    /// small for an item).
+    /// [`StoreError::Layout`] unless the flash is [`PAGES`] erase pages (of a size that
+    /// holds an item): the one layout of every board.
     pub fn open(flash: F, checks: &impl Validator) -> Result<(Self, Boot), StoreError> {
-        let pages = flash.capacity() / F::ERASE_SIZE;
-        let end = u32::try_from(pages * F::ERASE_SIZE).map_err(|_| StoreError::Layout)?;
+        if flash.capacity() != PAGES * F::ERASE_SIZE {
+            return Err(StoreError::Layout);
+        }
+        let end = u32::try_from(PAGES * F::ERASE_SIZE).map_err(|_| StoreError::Layout)?;
         let config = MapConfig::try_new(0..end).map_err(|_| StoreError::Layout)?;
+        let cache = Cache::new(
+            ArrayPageStates::new(),
+            ArrayPagePointers::new(),
+            ArrayKeyPointers::new(),
+        );
         let mut store = Self {
-            map: MapStorage::new(Blocking(flash), config, Cache::new_uncached()),
+            map: MapStorage::new(Blocking(flash), config, cache),
             work: Work([0; WORK_LEN]),
             stored: RecordSet::default(),
             generation: 0,
@@ -300,35 +320,58 @@ impl<F: NorFlash> Store<F> {
             }
         }
         self.stored = boot.set;
+        // After the set's lookup, which repairs the map after an interrupted operation.
         self.load_faults(&mut boot);
         boot
     }
 
     fn load_faults(&mut self, boot: &mut Boot) {
+        let mut slots: [Option<Result<FaultEntry, Rejection>>; FAULT_LOG_LEN] =
+            [None; FAULT_LOG_LEN];
+        // One pass over every item (the newest of each key comes last); if the pass fails,
+        // one lookup per slot, each of which repairs the map if it has to.
+        if self.scan_fault_slots(&mut slots).is_err() {
+            for (slot, entry) in (0u8..).zip(slots.iter_mut()) {
+                let key = FAULT_KEY_BASE + slot;
+                *entry = match block_on(self.map.fetch_item::<&[u8]>(&mut self.work.0, &key)) {
+                    Ok(None) => None,
+                    Ok(Some(bytes)) => Some(records::decode::<FaultEntry>(bytes)),
+                    Err(e) => Some(Err(Rejection::Flash(flash_fault(&e)))),
+                };
+            }
+        }
         let mut next = self.fault_floor;
-        let mut flash_error = None;
-        for slot in 0..FAULT_LOG_LEN as u8 {
-            let key = FAULT_KEY_BASE + slot;
-            match block_on(self.map.fetch_item::<&[u8]>(&mut self.work.0, &key)) {
-                Ok(None) => {}
-                Ok(Some(bytes)) => match records::decode::<FaultEntry>(bytes) {
-                    Ok(entry) => {
-                        next = next.max(entry.seq.saturating_add(1));
-                        if entry.seq >= self.fault_floor {
-                            boot.faults.insert(entry);
-                        }
+        for entry in slots.into_iter().flatten() {
+            match entry {
+                Ok(entry) => {
+                    next = next.max(entry.seq.saturating_add(1));
+                    if entry.seq >= self.fault_floor {
+                        boot.faults.insert(entry);
                     }
-                    Err(why) => boot.faults.drop_entry(why),
-                },
-                Err(e) => flash_error = Some(Rejection::Flash(flash_fault(&e))),
+                }
+                Err(why) => boot.faults.drop_entry(why),
             }
         }
         self.next_fault_seq = next;
-        boot.report.faults = match (boot.faults.is_empty(), boot.faults.dropped().1, flash_error) {
-            (false, _, _) => Outcome::Loaded,
-            (true, _, Some(why)) | (true, Some(why), None) => Outcome::Rejected(why),
-            (true, None, None) => Outcome::Default,
+        boot.report.faults = match (boot.faults.is_empty(), boot.faults.dropped().1) {
+            (false, _) => Outcome::Loaded,
+            (true, Some(why)) => Outcome::Rejected(why),
+            (true, None) => Outcome::Default,
         };
+    }
+
+    fn scan_fault_slots(
+        &mut self,
+        slots: &mut [Option<Result<FaultEntry, Rejection>>; FAULT_LOG_LEN],
+    ) -> Result<(), sequential_storage::Error<F::Error>> {
+        let mut items = block_on(self.map.fetch_all_items(&mut self.work.0))?;
+        while let Some((key, bytes)) = block_on(items.next::<&[u8]>(&mut self.work.0))? {
+            let slot = usize::from(key.wrapping_sub(FAULT_KEY_BASE));
+            if let Some(entry) = slots.get_mut(slot) {
+                *entry = Some(records::decode::<FaultEntry>(bytes));
+            }
+        }
+        Ok(())
     }
 
     /// Saves `set` as the new stored set, in one map item: after a power cut the store holds
@@ -497,4 +540,324 @@ fn decode_set(bytes: &[u8], checks: &impl Validator, boot: &mut Boot) -> Option<
         load_record(body.calibration, |c| checks.calibration(c));
     (boot.set.bus, boot.report.bus) = load_record(body.bus, |b| checks.bus(b));
     Some((body.generation, body.fault_floor))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Clutch, RamFlash};
+    use protocol::CLUTCH_MAX_UM as CLUTCH_MAX;
+    use protocol::{FaultCode, Gains, Limits};
+
+    type Flash = RamFlash<PAGES>;
+
+    fn config() -> Config {
+        Config {
+            clutch: Clutch::LengthUm(3_000),
+            link_inertia_kg_mm2: 1_000,
+            gains: None,
+            limits: Limits::DEFAULT,
+            command_timeout_ms: 100,
+        }
+    }
+
+    fn bus() -> BusSettings {
+        BusSettings::AX12A_DEFAULT
+    }
+
+    /// Writes a raw set item (as some other firmware might have) and loads it.
+    fn load_raw(item: &[u8], checks: &impl Validator) -> Boot {
+        let (mut s, _) = Store::open(Flash::new(), &RangeChecks).unwrap();
+        block_on(s.map.store_item(&mut s.work.0, &SET_KEY, &item)).unwrap();
+        s.load(checks)
+    }
+
+    /// A set item with these record bytes.
+    fn raw_set(config: &[u8], calibration: &[u8], bus: &[u8]) -> ([u8; SET_ITEM_MAX], usize) {
+        let body = SetBody {
+            generation: 7,
+            fault_floor: 0,
+            config,
+            calibration,
+            bus,
+        };
+        let mut item = [0u8; SET_ITEM_MAX];
+        item[0] = SET_FORMAT;
+        let n = 1 + postcard::to_slice(&body, &mut item[1..]).unwrap().len();
+        (item, n)
+    }
+
+    fn encoded<R: Record>(r: &R) -> Vec<u8> {
+        let mut buf = [0u8; SET_ITEM_MAX];
+        let n = records::encode(r, &mut buf).unwrap();
+        buf[..n].to_vec()
+    }
+
+    #[test]
+    fn an_empty_store_boots_with_defaults() {
+        let (_, boot) = Store::open(Flash::new(), &RangeChecks).unwrap();
+        assert_eq!(boot, Boot::default());
+        assert!(boot
+            .report
+            .lines()
+            .iter()
+            .all(|(_, o)| *o == Outcome::Default));
+        assert_eq!(boot.report.lines()[0].0, "config");
+    }
+
+    #[test]
+    fn a_saved_set_loads_whole_and_absent_records_stay_default() {
+        let (mut s, _) = Store::open(Flash::new(), &RangeChecks).unwrap();
+        let set = RecordSet {
+            config: Some(config()),
+            calibration: None,
+            bus: Some(bus()),
+        };
+        assert_eq!(s.save(&set, &RangeChecks), Ok(1));
+        assert_eq!(s.stored(), &set);
+        let (_, boot) = Store::open(s.into_flash(), &RangeChecks).unwrap();
+        assert_eq!(boot.set, set);
+        assert_eq!(boot.report.generation, Some(1));
+        assert_eq!(
+            boot.report.lines().map(|(_, o)| o),
+            [
+                Outcome::Loaded,
+                Outcome::Default,
+                Outcome::Loaded,
+                Outcome::Default
+            ]
+        );
+    }
+
+    #[test]
+    fn a_newer_or_older_schema_version_is_rejected_with_the_reason() {
+        for version in [0u8, 2, 255] {
+            let mut cfg = encoded(&config());
+            cfg[0] = version;
+            let (item, n) = raw_set(&cfg, &[], &encoded(&bus()));
+            let boot = load_raw(&item[..n], &RangeChecks);
+            let why = Rejection::UnknownVersion {
+                found: version,
+                current: 1,
+            };
+            assert_eq!(boot.report.config, Outcome::Rejected(why));
+            assert_eq!(boot.set.config, None);
+            assert_eq!(boot.set.bus, Some(bus()), "the other records still load");
+            assert_eq!(
+                format!("{}", boot.report.config),
+                format!("rejected (schema version {version} unknown (this firmware: 1)), defaults")
+            );
+        }
+    }
+
+    #[test]
+    fn bytes_that_do_not_decode_are_rejected() {
+        let mut long = encoded(&config());
+        long.push(0); // trailing byte
+        let short = &encoded(&config())[..5];
+        let bad_code = [1u8, 0, 99, 0, 0]; // fault code 99 does not exist
+        for cfg in [&long[..], short, &[1u8][..]] {
+            let (item, n) = raw_set(cfg, &[], &[]);
+            let boot = load_raw(&item[..n], &RangeChecks);
+            assert_eq!(
+                boot.report.config,
+                Outcome::Rejected(Rejection::Undecodable)
+            );
+        }
+        let (mut s, _) = Store::open(Flash::new(), &RangeChecks).unwrap();
+        block_on(
+            s.map
+                .store_item(&mut s.work.0, &FAULT_KEY_BASE, &&bad_code[..]),
+        )
+        .unwrap();
+        let boot = s.load(&RangeChecks);
+        assert_eq!(boot.faults.dropped(), (1, Some(Rejection::Undecodable)));
+        assert_eq!(
+            boot.report.faults,
+            Outcome::Rejected(Rejection::Undecodable)
+        );
+    }
+
+    #[test]
+    fn an_unknown_envelope_rejects_every_record() {
+        let (mut item, n) = raw_set(&encoded(&config()), &[], &[]);
+        item[0] = 9;
+        let boot = load_raw(&item[..n], &RangeChecks);
+        let r = Outcome::Rejected(Rejection::UnknownVersion {
+            found: 9,
+            current: 1,
+        });
+        assert_eq!(
+            (boot.report.config, boot.report.calibration, boot.report.bus),
+            (r, r, r)
+        );
+        assert_eq!(boot.report.generation, None);
+        assert_eq!(boot.set, RecordSet::default());
+    }
+
+    struct NoLongClutch;
+    impl Validator for NoLongClutch {
+        fn config(&self, c: &Config) -> Result<(), &'static str> {
+            match c.clutch {
+                Clutch::LengthUm(l) if l > 5_000 => Err("beyond the design's 5 mm"),
+                _ => Ok(()),
+            }
+        }
+    }
+
+    #[test]
+    fn stored_values_failing_the_range_or_device_checks_are_not_applied() {
+        let out_of_range = Config {
+            clutch: Clutch::LengthUm(CLUTCH_MAX + 1),
+            ..config()
+        };
+        let (item, n) = raw_set(&encoded(&out_of_range), &[], &[]);
+        let boot = load_raw(&item[..n], &RangeChecks);
+        assert_eq!(
+            boot.report.config,
+            Outcome::Rejected(Rejection::Invalid(
+                "clutch length or stiffness out of range"
+            ))
+        );
+        let long = Config {
+            clutch: Clutch::LengthUm(6_000),
+            ..config()
+        };
+        let (item, n) = raw_set(&encoded(&long), &[], &[]);
+        assert_eq!(load_raw(&item[..n], &RangeChecks).set.config, Some(long));
+        let boot = load_raw(&item[..n], &NoLongClutch);
+        assert_eq!(
+            boot.report.config,
+            Outcome::Rejected(Rejection::Invalid("beyond the design's 5 mm"))
+        );
+        assert_eq!(boot.set.config, None);
+    }
+
+    #[test]
+    fn an_invalid_record_is_not_saved() {
+        let (mut s, _) = Store::open(Flash::new(), &RangeChecks).unwrap();
+        s.save(
+            &RecordSet {
+                config: Some(config()),
+                ..RecordSet::default()
+            },
+            &RangeChecks,
+        )
+        .unwrap();
+        let words = s.flash().words_written();
+        let bad = RecordSet {
+            config: Some(config()),
+            bus: Some(BusSettings { id: 254, ..bus() }),
+            ..RecordSet::default()
+        };
+        assert_eq!(
+            s.save(&bad, &RangeChecks),
+            Err(StoreError::Invalid {
+                record: "bus",
+                reason: "bus ID above 253"
+            })
+        );
+        assert_eq!(s.flash().words_written(), words, "nothing written");
+        let timeout0 = RecordSet {
+            config: Some(Config {
+                command_timeout_ms: 0,
+                ..config()
+            }),
+            ..RecordSet::default()
+        };
+        assert!(s.save(&timeout0, &RangeChecks).is_err());
+        let (_, boot) = Store::open(s.into_flash(), &RangeChecks).unwrap();
+        assert_eq!(boot.report.generation, Some(1));
+    }
+
+    #[test]
+    fn the_largest_records_are_the_documented_sizes() {
+        let config = Config {
+            clutch: Clutch::StiffnessMnmPerRad(u32::MAX),
+            link_inertia_kg_mm2: u32::MAX,
+            gains: Some(Gains {
+                kp: u64::MAX,
+                ki: u64::MAX,
+                kd: u64::MAX,
+            }),
+            limits: Limits {
+                torque_margin_permille: u16::MAX,
+                current_ma: u16::MAX,
+                motor_torque_unm: u32::MAX,
+                duty_permille: u16::MAX,
+                position_min_urad: i32::MIN,
+                position_max_urad: i32::MIN,
+            },
+            command_timeout_ms: u32::MAX,
+        };
+        let calibration = Calibration {
+            motor_polarity: i8::MIN,
+            encoder_direction: i8::MIN,
+            pot_direction: i8::MIN,
+            current_offset_counts: i16::MIN,
+            pot_offset_counts: i16::MIN,
+            resistance_mohm: u32::MAX,
+            back_emf_uv_s_per_rad: u32::MAX,
+            gear_friction_unm: u32::MAX,
+            link_inertia_kg_mm2: u32::MAX,
+            stiffness_mnm_per_rad: Some(u32::MAX),
+            clutch_length_um: Some(u32::MAX),
+            stiffness_uncertainty_permille: u16::MAX,
+        };
+        let bus = BusSettings {
+            id: u8::MAX,
+            baud_bps: u32::MAX,
+            protocol_version: u8::MAX,
+            return_delay_2us: u8::MAX,
+            status_return_level: u8::MAX,
+            cw_angle_limit: u16::MAX,
+            ccw_angle_limit: u16::MAX,
+        };
+        let fault = FaultEntry {
+            seq: u32::MAX,
+            fault: FaultRecord {
+                code: FaultCode::CommandTimeout,
+                value: i32::MIN,
+                tick: u32::MAX,
+            },
+        };
+        let (c, k, b) = (encoded(&config), encoded(&calibration), encoded(&bus));
+        assert_eq!(
+            (c.len(), k.len(), b.len()),
+            (CONFIG_MAX, CALIBRATION_MAX, BUS_MAX)
+        );
+        assert_eq!(encoded(&fault).len(), FAULT_MAX);
+        let body = SetBody {
+            generation: u32::MAX,
+            fault_floor: u32::MAX,
+            config: &c,
+            calibration: &k,
+            bus: &b,
+        };
+        assert_eq!(
+            1 + postcard::to_slice(&body, &mut [0u8; 2 * SET_ITEM_MAX])
+                .unwrap()
+                .len(),
+            SET_ITEM_MAX
+        );
+    }
+
+    #[test]
+    fn the_config_layout_is_pinned_to_its_schema_version() {
+        // If this changes (a field added, a protocol type changed), bump the version and
+        // add a migration: flash written by the old firmware must not decode as the new.
+        assert_eq!(
+            encoded(&config()),
+            [
+                1, // version
+                0, 0xB8, 0x17, // Clutch::LengthUm(3000)
+                0xE8, 0x07, // 1000 kg·mm²
+                0,    // automatic gains
+                0xD2, 0x06, 0xDC, 0x0B, 0xE0, 0xC6, 0x5B, 0xE8,
+                0x07, // limits: 850 ‰, 1500 mA, 1.5 N·m, 1000 ‰
+                0xBF, 0x96, 0xB1, 0x02, 0xC0, 0x96, 0xB1, 0x02, // ±2.5 rad (zig-zag)
+                100,  // command timeout, ms
+            ]
+        );
+    }
 }
