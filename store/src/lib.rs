@@ -88,7 +88,7 @@
 //!   forward, then erases it; sequential-storage resumes an interrupted reclaim at the next
 //!   operation.
 //! * The tests cut the power after every word write and in every erase of a save, of a
-//!   reclaiming save, of a factory reset (also a reclaiming one) and of a fault write, and
+//!   reclaiming save, of a factory reset and of a fault write, and
 //!   run random sequences of saves, cuts, resets and faults (`tests/power_fail.rs`); 1 000
 //!   saves wear both pages evenly (`tests/wear.rs`).
 //!
@@ -110,8 +110,10 @@
 //!   0.25–0.5 s rather than 1–2 s; sector 0 must hold the vector table (the boot address);
 //!   sequential-storage needs equal pages, so not sector 4 (64 KiB) with them; two pages
 //!   are the map's minimum and hold the live data (one set item + 16 faults ≈ 0.5 KiB)
-//!   many times over. Each page takes ≈ 200 saves before it is reclaimed (`tests/wear.rs`):
-//!   with the F4's 10 000 erase cycles per sector, ≈ 4 million saves.
+//!   many times over. A page fills in ≈ 200 saves (a full set: ≈ 80 B with the item
+//!   header), so each page is erased once per ≈ 400 saves (1 000 saves: erase counts
+//!   `[2, 2]`, `tests/wear.rs`): with the F4's 10 000 erase cycles per sector, ≈ 4 million
+//!   saves.
 //! * **Word-wide programming:** [`WORD_SIZE`] = 4 (PSIZE x32, the F4's parallelism at 2.7–3.6 V).
 //!   `stm32f4xx-hal`'s `NorFlash` erases in 128 KiB units (`ERASE_SIZE`) and programs bytes,
 //!   so the Nucleo needs a small `NorFlash` over `UnlockedFlash` presenting sectors 1–2 as

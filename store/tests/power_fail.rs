@@ -177,40 +177,6 @@ fn a_factory_reset_cut_at_every_word_is_old_or_empty_whole() {
 }
 
 #[test]
-fn a_factory_reset_that_reclaims_a_page_cut_at_every_word_and_erase() {
-    // Save until a factory reset would have to erase a page, then sweep that reset.
-    let (mut s, _) = Store::open(Flash::new(), &RangeChecks).unwrap();
-    for i in 0.. {
-        s.save(&sample_set(i), &RangeChecks).unwrap();
-        if i % 7 == 3 {
-            s.log_fault(sample_fault(i)).unwrap();
-        }
-        let pre = Flash::from_bytes(s.flash().as_bytes()).unwrap();
-        let (_, erased) = measure(&pre, &|s| s.factory_reset().unwrap());
-        if erased == 0 {
-            continue;
-        }
-        let (_, before) = reboot(&pre);
-        let (old, old_faults) = (before.set, faults(&before));
-        assert!(!old_faults.is_empty());
-        let r = sweep(&pre, &|s| s.factory_reset(), &|boot| {
-            if boot.set == RecordSet::default() && boot.faults.is_empty() {
-                true
-            } else {
-                assert_eq!((boot.set, faults(boot)), (old, old_faults.clone()), "a mix");
-                false
-            }
-        });
-        eprintln!(
-            "reclaiming factory-reset sweep after {} saves: {r:?}",
-            i + 1
-        );
-        assert!(r.old > 0 && r.new == 1, "{r:?}");
-        return;
-    }
-}
-
-#[test]
 fn a_fault_write_cut_at_every_word_loses_at_most_that_fault() {
     let pre = history(20);
     let (_, before) = reboot(&pre);
