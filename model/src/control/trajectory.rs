@@ -24,7 +24,7 @@
 
 use fixed::types::I64F64;
 
-use super::config::ControlError;
+use super::error::ControlError;
 use super::gain::{q32_to_q16, sat_i32};
 use super::sine::{cos_q30, sin_q30};
 use crate::units::{Angle, Frequency};
