@@ -40,7 +40,7 @@ pub enum Branch {
 impl Setting {
     /// |τ| on `branch` for a beam deflection magnitude `d` (rad).
     fn branch_magnitude(&self, d: SoftFloat, branch: Branch) -> Option<SoftFloat> {
-        let a = self.friction.mul(d)?;
+        let a = self.friction.mul(d)?; // §2.1: (6/5)·μ·δ/L
         let factor = match branch {
             Branch::Loading => SoftFloat::ONE.add(a)?,
             Branch::Unloading => SoftFloat::ONE.saturating_sub(a),
