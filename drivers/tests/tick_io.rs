@@ -96,17 +96,27 @@ fn a_failed_read_keeps_the_last_value_and_names_the_sensor() {
     assert_eq!(first.read_error, None);
 
     let second = io.read_inputs();
-    assert_eq!(second.link_encoder, 100, "the link keeps its last good value");
+    assert_eq!(
+        second.link_encoder, 100,
+        "the link keeps its last good value"
+    );
     assert_eq!((second.gear_pot, second.current_adc), (Some(510), 2100));
     assert_eq!(second.read_error, Some(Sensor::LinkEncoder));
 
     let third = io.read_inputs();
-    assert_eq!(third.gear_pot, Some(510), "the pot keeps its last good value");
+    assert_eq!(
+        third.gear_pot,
+        Some(510),
+        "the pot keeps its last good value"
+    );
     assert_eq!((third.link_encoder, third.current_adc), (300, 2200));
     assert_eq!(third.read_error, Some(Sensor::GearPot));
 
     let fourth = io.read_inputs();
-    assert_eq!(fourth.current_adc, 2200, "the current keeps its last good value");
+    assert_eq!(
+        fourth.current_adc, 2200,
+        "the current keeps its last good value"
+    );
     assert_eq!((fourth.link_encoder, fourth.gear_pot), (400, Some(530)));
     assert_eq!(fourth.read_error, Some(Sensor::CurrentAdc));
     done(&io);

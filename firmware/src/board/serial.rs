@@ -1,9 +1,6 @@
 //! USART2, the host link: the same on every board (the Nucleo's ST-LINK virtual COM port
 //! is wired to USART2 on PA2/PA3; the emulated boards' second `-serial` device is
 //! USART2), through the board's device crate `super::pac`.
-//!
-//! Shared as a source file with the bench crate's control-only image
-//! (`bench/src/board.rs`), so that its footprint counts the firmware's own driver.
 
 use super::pac;
 
