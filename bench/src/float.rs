@@ -1,9 +1,10 @@
 //! An f32 port of the per-tick control step and of k(L) / L(k), kept **only** to compare
-//! instruction counts with the fixed-point `model` (issue 7). Nothing in the firmware uses
-//! it.
+//! instruction counts with the fixed-point `model` (`cargo xtask bench`). Nothing in the
+//! firmware uses it.
 //!
 //! It mirrors the structure of the fixed-point code statement by statement, with the same
-//! per-tick work and the same branches, in SI units and f32:
+//! per-tick work and the same branches, in SI units and f32 (so `duplicates` pairs it with
+//! `model`: on purpose, a comparison is only fair between the same steps):
 //!
 //! * [`FloatController::step`] is `model::control::Controller::step` (encoder unwrapping,
 //!   back-EMF observer, blended torque estimate, reference, feed-forward, free-play

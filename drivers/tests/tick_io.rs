@@ -2,8 +2,10 @@
 //! value and names the sensor; the bridge is off when the servo says so, and after a driver
 //! error.
 
+mod common;
+
 use drivers::tick_io::{TickIo, CURRENT_ADC_AT_ZERO};
-use drivers::{AngleSensor, BridgeState, CurrentSensor, HBridge, SensorError};
+use drivers::{AngleSensor, BridgeState, CurrentSensor, SensorError};
 use embedded_hal_mock::eh1::digital::{Mock as PinMock, State, Transaction as Pin};
 use embedded_hal_mock::eh1::pwm::{Mock as PwmMock, Transaction as Pwm};
 use embedded_hal_mock::eh1::MockError;
@@ -50,14 +52,7 @@ fn io(
     dir_after: &[Pin],
     en_after: &[Pin],
 ) -> Io {
-    let mut pwm = vec![Pwm::set_duty_cycle(0)];
-    pwm.extend_from_slice(pwm_after);
-    let mut dir = vec![Pin::set(State::Low)];
-    dir.extend_from_slice(dir_after);
-    let mut en = vec![Pin::set(State::Low)];
-    en.extend_from_slice(en_after);
-    let bridge = HBridge::new(PwmMock::new(&pwm), PinMock::new(&dir), PinMock::new(&en))
-        .expect("mock lines do not fail");
+    let bridge = common::bridge(pwm_after, dir_after, en_after);
     let [link, pot, current] = sensors;
     TickIo::new(
         Scripted::new(link),
@@ -69,9 +64,7 @@ fn io(
 
 /// Checks that the bridge's mocks saw every expected transaction, and nothing more.
 fn done(io: &Io) {
-    io.bridge.pwm().clone().done();
-    io.bridge.dir().clone().done();
-    io.bridge.en().clone().done();
+    common::done(&io.bridge);
 }
 
 const LOST: Result<u16, SensorError> = Err(SensorError::Bus);

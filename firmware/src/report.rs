@@ -82,7 +82,8 @@ impl Reporter {
                     report.dropped_reports,
                 );
                 // The emulated boards log a second only when it had an overrun (a long
-                // run would otherwise print a line per second).
+                // run would otherwise print a line per second). The same line at two defmt
+                // levels is two macro calls: `duplicates` pairs them, on purpose.
                 #[cfg(feature = "qemu")]
                 if report.overruns > 0 {
                     defmt::warn!(

@@ -307,7 +307,7 @@ pub fn run() -> Result<()> {
         let get = |k: &str| benches[i].results.get(k).map(|r| r.max.round() as u64);
         b.insert("stiffness_insns".into(), json!(get("stiffness")));
         b.insert("inverse_insns".into(), json!(get("inverse")));
-        // The control firmware (no plant): the figures the targets are about.
+        // The control firmware (no plant): the figures the performance targets are about.
         let c = &controls[i];
         b.insert("flash_bytes".into(), json!(c.footprint.flash()));
         b.insert("static_ram_bytes".into(), json!(c.footprint.static_ram()));
@@ -414,29 +414,33 @@ fn markdown(
     }
 
     s.push_str("\n| image | board | flash (text + rodata + data) | static RAM (data + bss + uninit) | stack high-water |\n|---|---|---:|---:|---:|\n");
-    for (i, b) in boards.iter().enumerate() {
-        s.push_str(&format!(
-            "| control firmware without the plant: control loop + host link (`vsa-control-only`, 2 s holding) | {} | {} | {} | {} of {} (boot {}, running {}) |\n",
-            b.feature(),
-            fmt_bytes(controls[i].footprint.flash()),
-            fmt_bytes(controls[i].footprint.static_ram()),
-            controls[i].stack.0,
-            controls[i].stack.1,
-            controls[i].stack.2,
-            controls[i].stack.3
+    // One row: image, board, footprint and stack high-water (peak, size, boot, running).
+    let row = |image: &str, board: Board, f: &Footprint, st: &(u64, u64, u64, u64)| {
+        format!(
+            "| {image} | {} | {} | {} | {} of {} (boot {}, running {}) |\n",
+            board.feature(),
+            fmt_bytes(f.flash()),
+            fmt_bytes(f.static_ram()),
+            st.0,
+            st.1,
+            st.2,
+            st.3
+        )
+    };
+    for (b, c) in boards.iter().zip(controls) {
+        s.push_str(&row(
+            "control firmware without the plant: control loop + host link (`vsa-control-only`, 2 s holding)",
+            *b,
+            &c.footprint,
+            &c.stack,
         ));
     }
-    for (i, b) in boards.iter().enumerate() {
-        let f = &firmwares[i];
-        s.push_str(&format!(
-            "| firmware with the simulated actuator (`vsa-firmware`, step sweep) | {} | {} | {} | {} of {} (boot {}, running {}) |\n",
-            b.feature(),
-            fmt_bytes(f.footprint.flash()),
-            fmt_bytes(f.footprint.static_ram()),
-            f.stack.0,
-            f.stack.1,
-            f.stack.2,
-            f.stack.3
+    for (b, f) in boards.iter().zip(firmwares) {
+        s.push_str(&row(
+            "firmware with the simulated actuator (`vsa-firmware`, step sweep)",
+            *b,
+            &f.footprint,
+            &f.stack,
         ));
     }
     s.push_str(&format!(
@@ -445,7 +449,7 @@ fn markdown(
         fmt_bytes(nucleo.static_ram())
     ));
 
-    // The targets, checked.
+    // The performance targets (README, Performance), checked.
     let at = |b: Board| boards.iter().position(|x| *x == b);
     let (m3, m4) = (at(Board::QemuM3), at(Board::QemuM4));
     let r = |i: Option<usize>, name: &str| i.and_then(|i| benches[i].results.get(name)).copied();

@@ -228,6 +228,8 @@ mod suite {
                     freadings.current_adc,
                 );
 
+                // The same step for the two servos (fixed point, then the f32 port): two
+                // closures on purpose, each timed on its own concrete types.
                 let (out, c) = time((&mut io, &mut servo), |(io, servo)| {
                     let input = io.read_inputs();
                     let out = servo.tick(&input);
