@@ -12,14 +12,11 @@
 
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
+use model::sensors::ADC_MID;
 use model::servo::{BridgeDemand, TickInput};
 use model::supervisor::Sensor;
 
 use crate::{AngleSensor, BridgeState, CurrentSensor, HBridge};
-
-/// Current ADC counts at zero current (mid-scale of the 12-bit ADC): the value the servo
-/// sees before the first successful read.
-pub const CURRENT_ADC_AT_ZERO: u16 = 2048;
 
 /// The sensors and the H-bridge of one actuator, with what the last tick read.
 pub struct TickIo<Link, Pot, Current, Pwm, Dir, En> {
@@ -45,7 +42,7 @@ where
     En: OutputPin,
 {
     /// The actuator's I/O; until the first good read the servo sees the link at 0, no
-    /// gear pot and zero current.
+    /// gear pot and zero current (`ADC_MID`).
     pub fn new(link: Link, pot: Pot, current: Current, bridge: HBridge<Pwm, Dir, En>) -> Self {
         Self {
             link,
@@ -55,7 +52,7 @@ where
             last: TickInput {
                 link_encoder: 0,
                 gear_pot: None,
-                current_adc: CURRENT_ADC_AT_ZERO,
+                current_adc: ADC_MID,
                 read_error: None,
             },
             bridge_errors: 0,

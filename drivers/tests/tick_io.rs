@@ -4,11 +4,12 @@
 
 mod common;
 
-use drivers::tick_io::{TickIo, CURRENT_ADC_AT_ZERO};
+use drivers::tick_io::TickIo;
 use drivers::{AngleSensor, BridgeState, CurrentSensor, SensorError};
 use embedded_hal_mock::eh1::digital::{Mock as PinMock, State, Transaction as Pin};
 use embedded_hal_mock::eh1::pwm::{Mock as PwmMock, Transaction as Pwm};
 use embedded_hal_mock::eh1::MockError;
+use model::sensors::{ADC_MID, ENCODER_COUNTS};
 use model::servo::BridgeDemand;
 use model::supervisor::Sensor;
 use std::collections::VecDeque;
@@ -27,7 +28,7 @@ impl Scripted {
 }
 
 impl AngleSensor for Scripted {
-    const FULL_SCALE: u16 = 4096;
+    const FULL_SCALE: u16 = ENCODER_COUNTS;
 
     fn read_counts(&mut self) -> Result<u16, SensorError> {
         self.next()
@@ -121,7 +122,7 @@ fn before_any_good_read_the_servo_sees_the_actuator_at_rest() {
     let input = io.read_inputs();
     assert_eq!(
         (input.link_encoder, input.gear_pot, input.current_adc),
-        (0, None, CURRENT_ADC_AT_ZERO)
+        (0, None, ADC_MID)
     );
     // All three failed; the last one read is the one named.
     assert_eq!(input.read_error, Some(Sensor::CurrentAdc));

@@ -135,8 +135,9 @@ mod suite {
         length_mm, stiffness_nm_per_rad, FloatBeam, FloatController, FloatMeasurements,
         FloatSchedule, FloatServo,
     };
-    use firmware::board::{at_rest, SimulatedIo};
+    use firmware::board::{at_rest, SimulatedIo, POT_AT_REST};
     use model::control::{Command, Config, Measurements};
+    use model::sensors::POT_COUNT_Q32;
     use model::servo::Servo;
     use model::supervisor::SupervisorConfig;
     use model::{Angle, Design, Frequency, Length, Torque};
@@ -272,7 +273,8 @@ mod suite {
                     reference_urad: micro(out.control.reference.to_bits()),
                     link_angle_urad: micro(out.control.link_angle.to_bits()),
                     gear_angle_urad: micro(
-                        i64::from(i32::from(readings.gear_pot) - 512) * 21_961_324,
+                        i64::from(i32::from(readings.gear_pot) - i32::from(POT_AT_REST))
+                            * POT_COUNT_Q32,
                     ),
                     current_ma: (micro(out.control.current.to_bits()) / 1000) as i16,
                     torque_unm: micro(out.control.torque_estimate.to_bits()),

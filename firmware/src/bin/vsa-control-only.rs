@@ -21,7 +21,7 @@
 
 /// Link encoder, gear pot and current ADC readings the simulated channels present (read
 /// with volatile loads, as from a peripheral, so they are not constants to the compiler).
-static READINGS: [u16; 3] = [0, 512, 2048];
+static READINGS: [u16; 3] = [0, firmware::board::POT_AT_REST, model::sensors::ADC_MID];
 
 /// Reading `i` of [`READINGS`].
 fn reading(i: usize) -> u16 {

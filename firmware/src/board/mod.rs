@@ -29,7 +29,7 @@ pub use nucleo::{pac, Nucleo as Selected};
 pub use qemu::{pac, Qemu as Selected, USART_BRR};
 pub use serial::{Serial, SerialRx, SerialTx};
 #[cfg(feature = "qemu")]
-pub use sim::{at_rest, SimulatedIo, Simulation, SERVED_CLUTCH_MM};
+pub use sim::{at_rest, SimulatedIo, Simulation, POT_AT_REST, SERVED_CLUTCH_MM};
 
 use crate::run_config::{IdleMode, RunConfig};
 use model::servo::{Servo, TickOutput};

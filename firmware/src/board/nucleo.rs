@@ -74,6 +74,7 @@ use defmt_rtt as _;
 use drivers::tick_io::TickIo;
 use drivers::{AngleSensor, CurrentSensor, SensorError};
 use model::control::Config as ControlConfig;
+use model::sensors::{ENCODER_COUNTS, POT_COUNTS};
 use model::servo::{Servo, TickOutput};
 use model::supervisor::{Fault, SupervisorConfig};
 use model::{Design, Length};
@@ -136,7 +137,8 @@ const _: () = assert!(ADC_POLL_LIMIT >= 7 * ADC_CONVERSION_CORE_CYCLES / 4);
 const ADC_STABILISATION_CORE_CYCLES: u32 = 5 * (SYSCLK_HZ / 1_000_000);
 
 /// Link encoder counts per turn (1024 lines × 4 edges).
-const LINK_COUNTS_PER_TURN: u16 = 4096;
+const LINK_COUNTS_PER_TURN: u16 = ENCODER_COUNTS;
+const _: () = assert!(LINK_COUNTS_PER_TURN == 1024 * 4);
 
 /// Host link baud rate, Bd: fast enough for 500 Hz telemetry (≈ 31-byte frames, 15.5 kB/s
 /// needs ≥ 155 kBd); the ST-LINK/V2-1 virtual COM port carries it.
@@ -407,7 +409,7 @@ pub struct GearPot {
 }
 
 impl AngleSensor for GearPot {
-    const FULL_SCALE: u16 = 1024;
+    const FULL_SCALE: u16 = POT_COUNTS;
 
     fn read_counts(&mut self) -> Result<u16, SensorError> {
         Adc1::convert_shared(POT_CHANNEL).map(|raw| raw >> 2)

@@ -9,8 +9,8 @@
 
 use super::{TickHooks, TickPlan};
 use drivers::sim::SimTickIo;
-use drivers::tick_io::CURRENT_ADC_AT_ZERO;
 use model::control::Config;
+use model::sensors::{ADC_COUNTS, ADC_MID, ENCODER_COUNTS, POT_COUNTS};
 use model::servo::{Servo, TickOutput};
 use model::supervisor::{Fault, SupervisorConfig};
 use model::{Design, Length};
@@ -18,16 +18,16 @@ use plant::scenario::{Action, BridgeLines, ScenarioEvent, ScenarioId, ScenarioRu
 use plant::served::ServedActuator;
 use service::Service;
 
-/// The emulated boards' actuator I/O: link encoder 4096 counts per turn, gear pot 1024
-/// counts over 300°, 12-bit current ADC, and the H-bridge, all on simulated lines.
-pub type SimulatedIo = SimTickIo<4096, 1024, 4096>;
+/// The emulated boards' actuator I/O: the link encoder, gear pot and current ADC of
+/// `model::sensors`, and the H-bridge, all on simulated lines.
+pub type SimulatedIo = SimTickIo<ENCODER_COUNTS, POT_COUNTS, ADC_COUNTS>;
 
 /// Gear pot counts at mid-travel, where the actuator rests before the first tick.
-const POT_AT_REST: u16 = 512;
+pub const POT_AT_REST: u16 = POT_COUNTS / 2;
 
 /// All lines low, the sensors presenting the actuator at rest until the first tick.
 pub fn at_rest() -> SimulatedIo {
-    match SimulatedIo::simulated(0, POT_AT_REST, CURRENT_ADC_AT_ZERO) {
+    match SimulatedIo::simulated(0, POT_AT_REST, ADC_MID) {
         Ok(io) => io,
         // The simulated lines cannot fail (`Infallible`).
         Err(_) => defmt::panic!("simulated H-bridge failed"),
