@@ -307,40 +307,32 @@ pub fn run() -> Result<()> {
         let get = |k: &str| benches[i].results.get(k).map(|r| r.max.round() as u64);
         b.insert("stiffness_insns".into(), json!(get("stiffness")));
         b.insert("inverse_insns".into(), json!(get("inverse")));
-        // The control firmware (no plant): the figures the performance targets are about.
-        let c = &controls[i];
-        b.insert("flash_bytes".into(), json!(c.footprint.flash()));
-        b.insert("static_ram_bytes".into(), json!(c.footprint.static_ram()));
-        b.insert("stack_bytes".into(), json!(c.stack.0));
-        b.insert("stack_size_bytes".into(), json!(c.stack.1));
-        b.insert("stack_boot_bytes".into(), json!(c.stack.2));
-        b.insert("stack_running_bytes".into(), json!(c.stack.3));
-        // The emulated firmware with the simulated actuator, after its step sweep.
-        b.insert("firmware_stack_bytes".into(), json!(firmwares[i].stack.0));
-        b.insert(
-            "firmware_stack_boot_bytes".into(),
-            json!(firmwares[i].stack.2),
-        );
-        b.insert(
-            "firmware_stack_running_bytes".into(),
-            json!(firmwares[i].stack.3),
-        );
-        b.insert(
-            "firmware_flash_bytes".into(),
-            json!(firmwares[i].footprint.flash()),
-        );
-        b.insert(
-            "firmware_static_ram_bytes".into(),
-            json!(firmwares[i].footprint.static_ram()),
-        );
-        b.insert(
-            "firmware_step_sweep_control_step_insns_mean".into(),
-            json!(firmwares[i].step.0),
-        );
-        b.insert(
-            "firmware_step_sweep_control_step_insns_max".into(),
-            json!(firmwares[i].step.1),
-        );
+        // The control firmware (no plant): the figures the performance targets are about;
+        // then the emulated firmware with the simulated actuator, after its step sweep.
+        let (c, f) = (&controls[i], &firmwares[i]);
+        for (key, value) in [
+            ("flash_bytes", json!(c.footprint.flash())),
+            ("static_ram_bytes", json!(c.footprint.static_ram())),
+            ("stack_bytes", json!(c.stack.0)),
+            ("stack_size_bytes", json!(c.stack.1)),
+            ("stack_boot_bytes", json!(c.stack.2)),
+            ("stack_running_bytes", json!(c.stack.3)),
+            ("firmware_stack_bytes", json!(f.stack.0)),
+            ("firmware_stack_boot_bytes", json!(f.stack.2)),
+            ("firmware_stack_running_bytes", json!(f.stack.3)),
+            ("firmware_flash_bytes", json!(f.footprint.flash())),
+            ("firmware_static_ram_bytes", json!(f.footprint.static_ram())),
+            (
+                "firmware_step_sweep_control_step_insns_mean",
+                json!(f.step.0),
+            ),
+            (
+                "firmware_step_sweep_control_step_insns_max",
+                json!(f.step.1),
+            ),
+        ] {
+            b.insert(key.into(), value);
+        }
         report.insert(board.feature().into(), Value::Object(b));
     }
     report.insert(

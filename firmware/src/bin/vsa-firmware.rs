@@ -176,6 +176,9 @@ mod app {
         }
     }
 
+    // The host link's two tasks, declared by each program that serves it (an RTIC app
+    // declares its own tasks; their work is the library's): `duplicates` pairs them.
+
     /// The host link's receive interrupt: queue the bytes, wake the link task.
     #[task(binds = USART2, priority = 2, local = [serial_rx, rx_tx])]
     fn uart_rx(cx: uart_rx::Context) {
