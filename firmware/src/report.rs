@@ -23,8 +23,25 @@ pub enum LogItem {
     Second(SecondReport),
     /// A board event (a scenario's progress on the emulated boards).
     Board(Event),
-    /// The board's last event was logged: the control loop's cost accounting.
+    /// The emulated run's last board event was logged: the control loop's cost
+    /// accounting.
+    #[cfg(feature = "qemu")]
     Costs(StepStats),
+}
+
+impl LogItem {
+    /// What to log after a run's last board event: the control loop's costs on the
+    /// emulated boards. The real board's runs do not end; without this variant its log
+    /// queue's items stay small.
+    pub fn costs(stats: StepStats) -> Option<LogItem> {
+        #[cfg(feature = "qemu")]
+        return Some(LogItem::Costs(stats));
+        #[cfg(not(feature = "qemu"))]
+        {
+            let _ = stats;
+            None
+        }
+    }
 }
 
 /// Writes log items; on the emulated boards, collects the results and ends the run.
@@ -102,11 +119,13 @@ impl Reporter {
                 }
             }
             LogItem::Board(ev) => self.board_event(ev),
+            #[cfg(feature = "qemu")]
             LogItem::Costs(stats) => self.finish(stats),
         }
     }
 
     /// The control loop's costs per tick, and the stack's high-water mark.
+    #[cfg(feature = "qemu")]
     fn log_costs(&self, stats: &StepStats) {
         let n = u64::from(stats.ticks.max(1));
         let step_mean = (stats.step_sum / n) as u32;
@@ -175,16 +194,11 @@ impl Reporter {
     }
 }
 
-/// The real board has no events, and no run end to report.
+/// The real board has no events to report.
 #[cfg(feature = "nucleo-f446re")]
 impl Reporter {
     fn board_event(&mut self, event: Event) {
         match event {}
-    }
-
-    fn finish(&mut self, stats: StepStats) -> ! {
-        self.log_costs(&stats);
-        board::exit(true)
     }
 }
 

@@ -155,8 +155,8 @@ mod app {
         while let Some(event) = control.hooks_mut().pop_event() {
             let last = Hooks::ends_run(&event);
             push(LogItem::Board(event));
-            if last {
-                push(LogItem::Costs(control.stats()));
+            if let Some(costs) = last.then(|| LogItem::costs(control.stats())).flatten() {
+                push(costs);
             }
         }
         if let Some(fault) = result.fault {
