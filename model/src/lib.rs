@@ -12,6 +12,8 @@
 //! * [`backlash`]: paper eqs. 5–7 and the free-play dead zone of the coupling;
 //! * [`hysteresis`]: friction hysteresis branches and their state machine (§2.1);
 //! * [`dynamics`]: natural frequency and the stiffness/clutch setting for a wanted one;
+//! * [`material`]: beam materials (E, G, σ_allow, density, sources); [`sizing`]: a design's
+//!   mass, stored energy and fit against goals (the explorer's numbers);
 //! * [`fixmath`]: integer square and cube roots;
 //! * [`control`]: the 1 kHz link-position controller, its trajectories and gain schedule;
 //! * [`supervisor`]: the latched fault checks (design.md §7); [`servo`]: the controller
@@ -46,7 +48,9 @@ pub mod dynamics;
 pub mod error;
 pub mod fixmath;
 pub mod hysteresis;
+pub mod material;
 pub mod servo;
+pub mod sizing;
 pub mod supervisor;
 pub mod units;
 
