@@ -837,6 +837,8 @@ fn boundary(mut pts: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
 fn write_figure(spec: &Spec, found: &Found, path: &std::path::Path) -> CliResult<()> {
     crate::figures::plot::register_font().map_err(CliError::runtime)?;
     let g = &spec.goals;
+    // The region near the goal: capacities up to 4 times the goal's.
+    let x_max = 4.0 * f(g.min_capacity.get());
     let mut series = Vec::new();
     for (ci, m) in spec.materials.iter().enumerate() {
         let pts: Vec<(f64, f64)> = found
@@ -847,7 +849,7 @@ fn write_figure(spec: &Spec, found: &Found, path: &std::path::Path) -> CliResult
             .collect();
         series.push(Series {
             label: Some(format!("{} (within mass and volume)", m.key)),
-            points: boundary(pts),
+            points: boundary(pts).into_iter().filter(|p| p.0 <= x_max).collect(),
             color: COLORS[ci % COLORS.len()],
             dashed: ci >= COLORS.len(),
             marker: false,
@@ -874,8 +876,7 @@ fn write_figure(spec: &Spec, found: &Found, path: &std::path::Path) -> CliResult
     });
     let fig = Figure {
         title: format!(
-            "Achievable stress-limited capacity and safe deflection at the softest setting — \
-beams ≤ {} mm ({} mm clamped), R ≤ {} mm, ≤ {} g, ≤ {} cm³",
+            "Achievable beam designs — beams ≤ {} mm ({} mm clamped), R ≤ {} mm, ≤ {} g, ≤ {} cm³",
             sig(f(spec.max_beam_length.get()), 3),
             sig(f(spec.clamp.get()), 3),
             sig(f(spec.max_pitch_radius.get()), 3),
@@ -883,8 +884,8 @@ beams ≤ {} mm ({} mm clamped), R ≤ {} mm, ≤ {} g, ≤ {} cm³",
             sig(f(g.max_volume_mm3) * 1e-3, 3)
         ),
         panels: vec![Panel {
-            caption: "each curve: the best deflection reachable at each capacity (the region \
-lies below it)"
+            caption: "each curve: the largest safe deflection reachable at each capacity or \
+more (the achievable region lies below it)"
                 .into(),
             x_label: "torque capacity τ_cap at the softest setting (N·m)".into(),
             y_label: "safe deflection θ_cap at the softest setting (rad)".into(),

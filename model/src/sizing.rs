@@ -43,12 +43,13 @@ fn fix(s: Scale) -> Result<I32F32> {
 /// # Errors
 /// As [`Design::torque_capacity`]; [`crate::Error::Overflow`] if it does not fit I32F32.
 pub fn energy_at_capacity(d: &Design, len: Length) -> Result<I32F32> {
-    let t = d.torque_capacity(len)?;
-    let a = d.deflection_capacity(len)?;
-    let p = ov(Scale::from_bits(t.to_bits(), 32)
-        .0
-        .mul(Scale::from_bits(a.to_bits(), 32).0))?;
-    // ½·τ·θ in I32F32 bits = τ·θ·2³¹.
+    // Validates L as the capacity functions do.
+    d.torque_capacity(len)?;
+    // ½·(cap_coef/L)·(theta_cap_coef·L²) = ½·cap_coef·theta_cap_coef·L from the design's
+    // unrounded constants (τ_cap and θ_cap rounded to I32F32 first would lose digits
+    // where θ_cap is a few µrad). cap_coef is in N·m·mm, theta_cap_coef in 1/mm².
+    let p = ov(ov(d.cap_coef.mul(d.theta_cap_coef))?.mul(len_s(len)))?;
+    // ½·E in I32F32 bits = E·2³¹.
     Ok(I32F32::from_bits(ov(p.to_i64(31, false))?))
 }
 
