@@ -260,8 +260,8 @@ fn config(d: &Design, task: &Task, len: Length) -> CliResult<Config> {
                 format!(
                     "{} kg·m² is out of the controller's range [{}, {}] kg·m²",
                     sig(f(task.inertia.get()) * 1e-6, 4),
-                    sig(f64::from(model::control::config::MIN_INERTIA) * 1e-6, 3),
-                    sig(f64::from(model::control::config::MAX_INERTIA) * 1e-6, 3)
+                    sig(f64::from(model::control::MIN_INERTIA) * 1e-6, 3),
+                    sig(f64::from(model::control::MAX_INERTIA) * 1e-6, 3)
                 ),
             )),
             // Other rejections depend on the setting: that row is null.

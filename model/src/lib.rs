@@ -15,6 +15,8 @@
 //! * [`material`]: beam materials (E, G, σ_allow, density, sources); [`sizing`]: a design's
 //!   mass, stored energy and fit against goals (the explorer's numbers);
 //! * [`fixmath`]: integer square and cube roots;
+//! * [`sensors`]: the sensors' resolutions, their count-to-radian constants and the
+//!   encoder wrap;
 //! * [`control`]: the 1 kHz link-position controller, its trajectories and gain schedule;
 //! * [`supervisor`]: the latched fault checks (design.md §7); [`servo`]: the controller
 //!   under the supervisor with the enable state machine, the firmware's per-tick decision;
@@ -49,6 +51,7 @@ pub mod error;
 pub mod fixmath;
 pub mod hysteresis;
 pub mod material;
+pub mod sensors;
 pub mod servo;
 pub mod sizing;
 pub mod supervisor;

@@ -20,20 +20,20 @@
 
 use fixed::types::I32F32;
 
-use crate::beam::ov;
+use crate::beam::or_overflow as ov;
 use crate::control::sine::{sin_q30, SIN_ONE};
 use crate::design::Design;
 use crate::error::Result;
-use crate::fixmath::{Scale, PI};
+use crate::fixmath::{SoftFloat, PI};
 use crate::units::{Angle, Length, Stiffness, Torque};
 
-const MEGA: Scale = Scale::from_u64(1_000_000);
+const MEGA: SoftFloat = SoftFloat::from_u64(1_000_000);
 
-fn len_s(l: Length) -> Scale {
-    Scale::from_bits(l.to_bits(), 32).0
+fn len_s(l: Length) -> SoftFloat {
+    SoftFloat::from_bits(l.to_bits(), 32).0
 }
 
-fn fix(s: Scale) -> Result<I32F32> {
+fn fix(s: SoftFloat) -> Result<I32F32> {
     Ok(I32F32::from_bits(ov(s.to_i64(32, false))?))
 }
 
@@ -63,10 +63,10 @@ pub fn beam_mass(d: &Design, total_length: Length, density_kg_m3: u32) -> Result
     let r = len_s(p.beam_radius);
     // mm³ · kg/m³ = 10⁻⁹ kg = 10⁻⁶ g.
     let v = ov(ov(
-        ov(ov(Scale::from_u64(u64::from(p.beams)).mul(PI))?.mul(ov(r.mul(r))?))?
+        ov(ov(SoftFloat::from_u64(u64::from(p.beams)).mul(PI))?.mul(ov(r.mul(r))?))?
             .mul(len_s(total_length)),
     )?
-    .mul(Scale::from_u64(u64::from(density_kg_m3))))?;
+    .mul(SoftFloat::from_u64(u64::from(density_kg_m3))))?;
     fix(ov(v.div(MEGA))?)
 }
 
