@@ -1,7 +1,11 @@
 //! `vsa advise`: which clutch setting saves energy for a periodic task.
 //!
-//! The task: a link of inertia J_l following a sine A·sin(2π·f·t) about its start, with an
-//! optional constant load. For each clutch length L of the list (default: 15 lengths over
+//! The task: a link of inertia J_l following a sine A·sin(2π·f·t) about its start, or one
+//! period of a recorded or planned trajectory repeated (`--trajectory`, a CSV of
+//! `t_s,angle_rad`: given to the controller as minimum-jerk moves, each aimed at the sample
+//! [`LOOK_AHEAD`] ahead and re-planned at every sample, so that the reference passes the
+//! samples without stopping; a 0.2 rad, 1 Hz sine sampled every 20 ms costs within 0.1 % of
+//! the sine command), with an optional constant load. For each clutch length L of the list (default: 15 lengths over
 //! the whole adjustable range [t_c, l]) the task runs in closed loop on the host — the
 //! `model` crate's controller against the `plant` crate's simulated actuator, through
 //! [`crate::figures::energy::energy_per_cycle`], the same function as the
@@ -39,15 +43,15 @@ use std::path::PathBuf;
 
 use clap::Args;
 use fixed::types::I32F32;
-use model::control::Config;
+use model::control::{Command, Config};
 use model::dynamics::Tuning;
-use model::{BeamModel, Design, Frequency, Inertia, Length};
+use model::{Angle, BeamModel, Design, Frequency, Inertia, Length};
 use plotters::prelude::SeriesLabelPosition;
 use serde::Serialize;
 
 use crate::design::{parse_design, BeamArgs};
 use crate::error::{CliError, CliResult};
-use crate::figures::energy::{energy_per_cycle, CycleEnergy, Motion};
+use crate::figures::energy::{energy_of_commands, energy_per_cycle, CycleEnergy, Motion};
 use crate::figures::plot::{Figure, Panel, Series, COLORS};
 use crate::format::{sig, Table};
 use crate::units::{self, Kind};
@@ -58,16 +62,20 @@ const DEFAULT_ROWS: u32 = 15;
 const MAX_ROWS: u32 = 200;
 /// Seconds of motion averaged at least (whole cycles).
 const AVERAGED_S: f64 = 2.0;
+/// Samples ahead that each move of a trajectory aims at (re-planned at every sample).
+const LOOK_AHEAD: usize = 4;
 /// A row tracks the task when its RMS error is at most this fraction of the motion's RMS.
 const TRACKING_TOLERANCE: f64 = 0.1;
 
 /// The clutch setting that saves energy for a periodic task (closed-loop simulation).
 #[derive(Args, Debug, Default)]
 #[command(
-    after_help = "The task: the link follows AMPLITUDE·sin(2π·FREQUENCY·t) with an optional \
-constant load. Design options as in `vsa design` (paper preset unless given). Values need \
-units: 1e-3kgm2, 0.2rad, 2Hz, 0.2Nm, 1mm..8mm:0.5mm.\n\nBad input: one line on stderr, \
-exit code 2."
+    after_help = "The task: the link follows AMPLITUDE·sin(2π·FREQUENCY·t), or one period \
+of a recorded or planned trajectory repeated (--trajectory: a CSV of t_s,angle_rad rows, \
+an optional header, times rising by at least 10 ms, ending where it starts; angles relative \
+to the first), with an optional constant load. Design options as in `vsa design` (paper \
+preset unless given). Values need units: 1e-3kgm2, 0.2rad, 2Hz, 0.2Nm, \
+1mm..8mm:0.5mm.\n\nBad input: one line on stderr, exit code 2."
 )]
 pub struct AdviseArgs {
     /// The beam design.
@@ -82,6 +90,9 @@ pub struct AdviseArgs {
     /// Sine frequency f [default: 1Hz]
     #[arg(long, value_name = "F", allow_hyphen_values = true)]
     pub frequency: Option<String>,
+    /// Instead of the sine: one period of a trajectory, CSV `t_s,angle_rad` (see below)
+    #[arg(long, value_name = "CSV", conflicts_with_all = ["amplitude", "frequency"])]
+    pub trajectory: Option<PathBuf>,
     /// Constant load torque on the link (positive pushes the link positive) [default: 0Nm]
     #[arg(long, value_name = "T", allow_hyphen_values = true)]
     pub load: Option<String>,
@@ -97,12 +108,16 @@ pub struct AdviseArgs {
 }
 
 /// The task as parsed.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 struct Task {
     inertia: Inertia,
     amplitude_rad: f64,
     frequency_hz: f64,
     load_nm: f64,
+    /// RMS of the motion about its mean, rad (the tracking tolerance's base).
+    motion_rms_rad: f64,
+    /// A trajectory instead of the sine.
+    trajectory: Option<Trajectory>,
 }
 
 /// One clutch length.
@@ -134,8 +149,15 @@ pub fn run(args: &AdviseArgs) -> CliResult<String> {
             .ok()
             .map(|w| f(w.get()) / std::f64::consts::TAU);
         let cfg = config(&design, &task, len)?;
-        let run = energy_per_cycle(&design, &cfg, &motion).map_err(CliError::runtime)?;
-        let motion_rms = task.amplitude_rad / std::f64::consts::SQRT_2;
+        let run = match &task.trajectory {
+            None => energy_per_cycle(&design, &cfg, &motion),
+            Some(tr) => match tr.command_at(0) {
+                Some(first) => energy_of_commands(&design, &cfg, &motion, first, |n| tr.script(n)),
+                None => Err("the trajectory's first move is out of range".into()),
+            },
+        }
+        .map_err(CliError::runtime)?;
+        let motion_rms = task.motion_rms_rad;
         rows.push(Row {
             length: len,
             stiffness: k.get().to_num(),
@@ -209,11 +231,165 @@ fn parse_task(a: &AdviseArgs) -> CliResult<Task> {
         .ok_or_else(|| {
             CliError::usage("--load", format!("{load} is out of range [-100, 100] N·m"))
         })?;
+    if let Some(path) = &a.trajectory {
+        let samples = read_trajectory(path)?;
+        let period = samples.period_ticks;
+        let mean = samples.points.iter().map(|p| p.1).sum::<f64>() / samples.points.len() as f64;
+        // The samples' spread stands for the motion's (piecewise, by sample time).
+        let mut sq = 0.0;
+        let mut amp: f64 = 0.0;
+        for (i, &(t, x)) in samples.points.iter().enumerate() {
+            let next = samples.points.get(i + 1).map_or(period, |p| p.0);
+            sq += (x - mean).powi(2) * f64::from(next - t);
+            amp = amp.max(x.abs());
+        }
+        return Ok(Task {
+            inertia,
+            amplitude_rad: amp,
+            frequency_hz: 1000.0 / f64::from(period),
+            load_nm,
+            motion_rms_rad: (sq / f64::from(period)).sqrt(),
+            trajectory: Some(samples),
+        });
+    }
     Ok(Task {
         inertia,
         amplitude_rad: f(amplitude),
         frequency_hz: f(frequency),
         load_nm,
+        motion_rms_rad: f(amplitude) / std::f64::consts::SQRT_2,
+        trajectory: None,
+    })
+}
+
+impl Task {
+    /// The motion in words.
+    fn describe(&self) -> String {
+        match &self.trajectory {
+            None => format!(
+                "sine {} rad at {} Hz",
+                sig(self.amplitude_rad, 4),
+                sig(self.frequency_hz, 4)
+            ),
+            Some(t) => format!(
+                "trajectory of {} samples, period {} s ({} Hz), up to {} rad from its start",
+                t.points.len() + 1,
+                sig(f64::from(t.period_ticks) / 1000.0, 4),
+                sig(self.frequency_hz, 4),
+                sig(self.amplitude_rad, 3)
+            ),
+        }
+    }
+}
+
+/// One period of a trajectory: (tick from its start, angle relative to its first sample),
+/// the last sample (back at the first angle) dropped, and the period in ticks.
+#[derive(Clone, Debug)]
+struct Trajectory {
+    points: Vec<(u32, f64)>,
+    period_ticks: u32,
+}
+
+impl Trajectory {
+    /// The move planned at sample `i` (of the periodic sequence): a minimum-jerk move to the
+    /// sample two ahead, due at that sample's time. Re-planned at every sample, so the
+    /// reference passes each sample moving instead of stopping at it.
+    fn command_at(&self, i: usize) -> Option<Command> {
+        let n = self.points.len();
+        let (t0, _) = self.points[i % n];
+        let j = i + LOOK_AHEAD;
+        let (tj, xj) = self.points[j % n];
+        let tj = tj + self.period_ticks * (j / n - i / n) as u32;
+        Some(Command::Move {
+            target: Angle::from_micro((xj * 1e6).round() as i64).ok()?,
+            duration_ms: tj - t0,
+        })
+    }
+
+    /// The command `n` ticks after the start, if a sample falls there.
+    fn script(&self, n: u32) -> Option<Command> {
+        let k = n % self.period_ticks;
+        let i = self.points.binary_search_by_key(&k, |p| p.0).ok()?;
+        self.command_at(i)
+    }
+}
+
+fn read_trajectory(path: &std::path::Path) -> CliResult<Trajectory> {
+    const ARG: &str = "--trajectory";
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| CliError::usage(ARG, format!("{}: {e}", path.display())))?;
+    let bad = |line: usize, why: String| CliError::usage(ARG, format!("line {line}: {why}"));
+    let mut raw: Vec<(f64, f64)> = Vec::new();
+    for (no, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() {
+            continue;
+        }
+        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
+        let nums: Option<Vec<f64>> = cells.iter().map(|c| c.parse::<f64>().ok()).collect();
+        match nums {
+            None if raw.is_empty() && no == 0 => continue, // a header
+            Some(v) if v.len() == 2 && v.iter().all(|x| x.is_finite()) => raw.push((v[0], v[1])),
+            _ => {
+                return Err(bad(
+                    no + 1,
+                    format!("'{line}' is not two numbers t_s,angle_rad"),
+                ))
+            }
+        }
+    }
+    if raw.len() < 3 {
+        return Err(CliError::usage(
+            ARG,
+            "a period needs at least 3 samples t_s,angle_rad",
+        ));
+    }
+    let (t0, x0) = raw[0];
+    let max_rad = f64::from(model::control::trajectory::MAX_ANGLE_RAD) / 10.0;
+    let mut points = Vec::with_capacity(raw.len());
+    for (i, &(t, x)) in raw.iter().enumerate() {
+        let tick = ((t - t0) * 1000.0).round();
+        let rel = x - x0;
+        if rel.abs() > max_rad {
+            return Err(bad(
+                i + 1,
+                format!("{x} rad is more than {max_rad} rad from the first sample"),
+            ));
+        }
+        if !(0.0..=600_000.0).contains(&tick) {
+            return Err(bad(
+                i + 1,
+                format!("{t} s is outside the first 600 s of the file"),
+            ));
+        }
+        let tick = tick as u32;
+        if let Some(&(prev, _)) = points.last() {
+            let step: u32 = tick.saturating_sub(prev);
+            if tick <= prev || step < model::control::trajectory::MIN_MOVE_MS {
+                return Err(bad(
+                    i + 1,
+                    format!(
+                        "samples must be at least {} ms apart, in rising time",
+                        model::control::trajectory::MIN_MOVE_MS
+                    ),
+                ));
+            }
+        }
+        points.push((tick, rel));
+    }
+    let (period_ticks, last) = points.pop().unwrap_or((0, 0.0));
+    if last.abs() > 1e-6 {
+        return Err(CliError::usage(
+            ARG,
+            format!(
+                "one period must end where it starts (last angle {} rad from the first)",
+                sig(last, 3)
+            ),
+        ));
+    }
+    Ok(Trajectory {
+        points,
+        period_ticks,
     })
 }
 
@@ -281,12 +457,17 @@ fn reduced_inertia(cfg: &Config, j_link: Inertia) -> CliResult<Inertia> {
 }
 
 fn motion(task: &Task) -> Motion {
+    let period_ticks = task.trajectory.as_ref().map(|t| t.period_ticks);
     Motion {
         key: "advise",
         amplitude_rad: task.amplitude_rad,
         frequency_hz: task.frequency_hz,
         load_nm: task.load_nm,
-        cycles: (AVERAGED_S * task.frequency_hz).ceil().max(1.0) as u32,
+        cycles: match period_ticks {
+            // Whole periods of the trajectory, at least AVERAGED_S.
+            Some(p) => (AVERAGED_S * 1000.0 / f64::from(p)).ceil().max(1.0) as u32,
+            None => (AVERAGED_S * task.frequency_hz).ceil().max(1.0) as u32,
+        },
     }
 }
 
@@ -461,11 +642,10 @@ N·m/rad, {} times stiffer than the stiffest setting ({} N·m/rad at L = t_c).",
 
     fn render(&self, task: &Task, sigma: f64) -> String {
         let mut out = format!(
-            "Task: link {} kg·m², sine {} rad at {} Hz, load {} N·m; closed loop (vsa \
-simulate's controller and simulated actuator), energies averaged over whole cycles.\n",
+            "Task: link {} kg·m², {}, load {} N·m; closed loop (vsa simulate's controller and \
+simulated actuator), energies averaged over whole cycles.\n",
             sig(f(task.inertia.get()) * 1e-6, 4),
-            sig(task.amplitude_rad, 4),
-            sig(task.frequency_hz, 4),
+            task.describe(),
             sig(task.load_nm, 4)
         );
         let mut t = Table::new(&[
@@ -564,10 +744,9 @@ simulate's controller and simulated actuator), energies averaged over whole cycl
         }
         let fig = Figure {
             title: format!(
-                "Energy per cycle vs clutch length — link {} kg·m², sine {} rad at {} Hz, load {} N·m",
+                "Energy per cycle vs clutch length — link {} kg·m², {}, load {} N·m",
                 sig(f(task.inertia.get()) * 1e-6, 3),
-                sig(task.amplitude_rad, 3),
-                sig(task.frequency_hz, 4),
+                task.describe(),
                 sig(task.load_nm, 3)
             ),
             panels: vec![Panel {

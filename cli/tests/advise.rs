@@ -194,6 +194,93 @@ fn a_task_at_the_natural_frequency_picks_that_setting_and_saves_what_two_masses_
     );
 }
 
+fn sine_csv(dir: &std::path::Path, name: &str, rows: &[(f64, f64)]) -> String {
+    let path = dir.join(name);
+    let mut text = String::from("t_s,angle_rad\n");
+    for (t, x) in rows {
+        text.push_str(&format!("{t},{x}\n"));
+    }
+    std::fs::write(&path, text).unwrap();
+    path.to_str().unwrap().to_string()
+}
+
+/// A recorded trajectory: one period of the 0.2 rad, 1 Hz sine sampled every 20 ms costs
+/// what the sine command costs (the trajectory is followed as minimum-jerk moves re-planned
+/// at every sample; both go through the same controller, so this holds for any controller
+/// that follows both).
+#[test]
+fn a_sampled_sine_costs_what_the_sine_costs() {
+    let dir = tempfile::tempdir().unwrap();
+    let rows: Vec<(f64, f64)> = (0..=50)
+        .map(|i| {
+            let t = f64::from(i) * 0.02;
+            (t, 0.2 * (std::f64::consts::TAU * t).sin())
+        })
+        .collect();
+    let csv = sine_csv(dir.path(), "sine.csv", &rows);
+    let sine = json(&["--load", "0.2Nm", "--lengths", "1mm,8mm"]);
+    let traj = json(&[
+        "--load",
+        "0.2Nm",
+        "--lengths",
+        "1mm,8mm",
+        "--trajectory",
+        &csv,
+    ]);
+    assert!((num(&traj["task"], "frequency_hz") - 1.0).abs() < 1e-12);
+    for (a, b) in sine["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(traj["rows"].as_array().unwrap())
+    {
+        let (ea, eb) = (num(a, "energy_per_cycle_j"), num(b, "energy_per_cycle_j"));
+        assert!(rel(eb, ea) < 0.01, "sine {ea} J, sampled {eb} J");
+        assert_eq!(b["tracks"], true);
+    }
+}
+
+#[test]
+fn bad_trajectories_are_one_line_and_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            "open.csv",
+            "0,0\n0.1,0.1\n0.2,0.05\n",
+            "end where it starts",
+        ),
+        ("short.csv", "0,0\n0.1,0\n", "at least 3 samples"),
+        (
+            "fast.csv",
+            "0,0\n0.005,0.1\n0.1,0\n",
+            "line 2: samples must be at least 10 ms apart",
+        ),
+        (
+            "text.csv",
+            "t,x\n0,0\nzero,1\n0.2,0\n",
+            "line 3: 'zero,1' is not two numbers",
+        ),
+    ];
+    for (name, text, want) in cases {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        let out = vsa(&["--lengths", "2mm", "--trajectory", path.to_str().unwrap()]);
+        assert_eq!(out.status.code(), Some(2), "{name}");
+        assert!(out.stdout.is_empty());
+        let err = String::from_utf8(out.stderr).unwrap();
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(
+            err.starts_with("error: --trajectory: ") && err.contains(want),
+            "{err}"
+        );
+    }
+    let out = vsa(&[
+        "--trajectory",
+        dir.path().join("missing.csv").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+}
+
 #[test]
 fn figure_is_written() {
     let dir = tempfile::tempdir().unwrap();

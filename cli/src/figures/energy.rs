@@ -212,18 +212,32 @@ pub fn energy_per_cycle(
     cfg: &Config,
     m: &Motion,
 ) -> Result<Option<CycleEnergy>, String> {
-    let cfg = *cfg;
-    if Schedule::new(d, &cfg).is_err() {
-        return Ok(None);
-    }
-    let pc = harness::plant_config(d, &cfg, m.load_nm as f32).map_err(err("plant"))?;
-    let window = window_ticks(m)?;
     let cmd = Command::Sine {
         amplitude: Angle::from_micro((m.amplitude_rad * 1e6).round() as i64)
             .map_err(err("amplitude"))?,
         frequency: Frequency::from_hz(I32F32::from_num(m.frequency_hz))
             .map_err(err("frequency"))?,
     };
+    energy_of_commands(d, cfg, m, cmd, |_| None)
+}
+
+/// As [`energy_per_cycle`] for any periodic motion of frequency `m.frequency_hz` given as
+/// commands: `first` when the motion starts, `script(n)` n ticks later
+/// ([`harness::run_script`]); `m.amplitude_rad` is not used.
+pub fn energy_of_commands(
+    d: &Design,
+    cfg: &Config,
+    m: &Motion,
+    first: Command,
+    script: impl FnMut(u32) -> Option<Command>,
+) -> Result<Option<CycleEnergy>, String> {
+    let cfg = *cfg;
+    if Schedule::new(d, &cfg).is_err() {
+        return Ok(None);
+    }
+    let pc = harness::plant_config(d, &cfg, m.load_nm as f32).map_err(err("plant"))?;
+    let window = window_ticks(m)?;
+    let cmd = first;
     let mut sc = Scenario::new(cfg, cmd);
     sc.design = *d;
     sc.load_nm = m.load_nm as f32;
@@ -239,7 +253,7 @@ pub fn energy_per_cycle(
     let from = SETTLE_TICKS + SKIP_TICKS;
     let mut e = CycleEnergy::default();
     let mut last_gear = 0.0f64;
-    let metrics = harness::run(&sc, |s| {
+    let metrics = harness::run_script(&sc, script, |s| {
         if s.tick >= from {
             let v = f64::from(s.duty).clamp(-full, full) / full * vs;
             let i = f64::from(s.current_a);
