@@ -51,6 +51,7 @@ use serde::Serialize;
 
 use crate::design::{parse_design, BeamArgs};
 use crate::error::{CliError, CliResult};
+use crate::explore::positive;
 use crate::figures::energy::{energy_of_commands, energy_per_cycle, CycleEnergy, Motion};
 use crate::figures::plot::{Figure, Panel, Series, COLORS};
 use crate::format::{sig, Table};
@@ -182,18 +183,6 @@ pub fn run(args: &AdviseArgs) -> CliResult<String> {
 
 fn f(x: I32F32) -> f64 {
     x.to_num()
-}
-
-fn positive(arg: &'static str, s: Option<&str>, default: &str, kind: Kind) -> CliResult<I32F32> {
-    let s = s.unwrap_or(default);
-    let q = units::parse(s, kind).map_err(|e| CliError::usage(arg, e))?;
-    if q.value.negative || q.value.is_zero() {
-        return Err(CliError::usage(arg, format!("{q} must be positive")));
-    }
-    q.value
-        .to_i32f32()
-        .filter(|v| *v > I32F32::ZERO)
-        .ok_or_else(|| CliError::usage(arg, format!("{q} is out of range")))
 }
 
 fn parse_task(a: &AdviseArgs) -> CliResult<Task> {
@@ -471,6 +460,24 @@ fn motion(task: &Task) -> Motion {
     }
 }
 
+/// "Resonance … is out of reach": `k` needed, `ratio` times `way` than the end `end_k` at
+/// L = `end`.
+fn out_of_reach(task: &Task, k: f64, ratio: f64, way: &str, end_k: f64, end: &str) -> String {
+    let side = if way == "softer" {
+        "softest"
+    } else {
+        "stiffest"
+    };
+    format!(
+        "Resonance with the task ({} Hz) is out of reach: it needs k = J_r·ω² = {} N·m/rad, {} \
+times {way} than the {side} setting ({} N·m/rad at L = {end}).",
+        sig(task.frequency_hz, 4),
+        sig(k, 3),
+        sig(ratio, 3),
+        sig(end_k, 4)
+    )
+}
+
 /// The rows and what they mean.
 struct Advice {
     rows: Vec<Row>,
@@ -581,22 +588,8 @@ L = {} mm.",
                 sig(k, 4),
                 sig(f(length.get()), 4)
             ),
-            Tuning::TooSoft { .. } => format!(
-                "Resonance with the task ({} Hz) is out of reach: it needs k = J_r·ω² = {} \
-N·m/rad, {} times softer than the softest setting ({} N·m/rad at L = l).",
-                sig(task.frequency_hz, 4),
-                sig(k, 3),
-                sig(soft / k, 3),
-                sig(soft, 4)
-            ),
-            Tuning::TooStiff { .. } => format!(
-                "Resonance with the task ({} Hz) is out of reach: it needs k = J_r·ω² = {} \
-N·m/rad, {} times stiffer than the stiffest setting ({} N·m/rad at L = t_c).",
-                sig(task.frequency_hz, 4),
-                sig(k, 3),
-                sig(k / stiff, 3),
-                sig(stiff, 4)
-            ),
+            Tuning::TooSoft { .. } => out_of_reach(task, k, soft / k, "softer", soft, "l"),
+            Tuning::TooStiff { .. } => out_of_reach(task, k, k / stiff, "stiffer", stiff, "t_c"),
         }
     }
 

@@ -158,7 +158,14 @@ pub struct Spec {
     lengths: Vec<Length>,
 }
 
-fn qty(arg: &'static str, s: Option<&str>, default: &str, kind: Kind) -> CliResult<I32F32> {
+/// A positive quantity of `kind` from `s` (or `default`), in the model's unit; shared with
+/// `vsa advise`.
+pub fn positive(
+    arg: &'static str,
+    s: Option<&str>,
+    default: &str,
+    kind: Kind,
+) -> CliResult<I32F32> {
     let s = s.unwrap_or(default);
     let q = units::parse(s, kind).map_err(|e| CliError::usage(arg, e))?;
     if q.value.negative || q.value.is_zero() {
@@ -195,27 +202,27 @@ fn f(x: I32F32) -> f64 {
 impl Spec {
     fn parse(a: &ExploreArgs) -> CliResult<Spec> {
         let goals = Goals {
-            min_capacity: Torque::from_fixed(qty(
+            min_capacity: Torque::from_fixed(positive(
                 "--min-capacity",
                 a.min_capacity.as_deref(),
                 "1.5Nm",
                 Kind::Torque,
             )?),
-            min_deflection: Angle::from_fixed(qty(
+            min_deflection: Angle::from_fixed(positive(
                 "--min-deflection",
                 a.min_deflection.as_deref(),
                 "0.2rad",
                 Kind::Angle,
             )?),
-            max_mass_g: qty("--max-mass", a.max_mass.as_deref(), "5.5g", Kind::Mass)?,
-            max_volume_mm3: qty(
+            max_mass_g: positive("--max-mass", a.max_mass.as_deref(), "5.5g", Kind::Mass)?,
+            max_volume_mm3: positive(
                 "--max-volume",
                 a.max_volume.as_deref(),
                 "6.4cm3",
                 Kind::Volume,
             )?,
         };
-        let len = |arg, s: &Option<String>, d| qty(arg, s.as_deref(), d, Kind::Length);
+        let len = |arg, s: &Option<String>, d| positive(arg, s.as_deref(), d, Kind::Length);
         let max_pitch_radius =
             Length::from_fixed(len("--max-pitch-radius", &a.max_pitch_radius, "14mm")?);
         let max_beam_length =

@@ -8,37 +8,23 @@
 //! the hand check, which needs a controller that tracks a task at the coupling resonance
 //! (see its docs).
 
-use std::process::{Command, Output};
-
 use host_tests::oracle::{self, TwoMass};
 use serde_json::Value;
 
 /// Gear-side inertia at the output, design.md §3 (rotor 5e-8 kg·m² × 254²).
 const J_GEAR: f64 = 3.2e-3;
 
-fn vsa(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vsa"))
-        .arg("advise")
-        .args(args)
-        .output()
-        .expect("run vsa")
+mod common;
+
+fn vsa(args: &[&str]) -> std::process::Output {
+    common::vsa("advise", args)
 }
 
 fn json(args: &[&str]) -> Value {
-    let mut a = args.to_vec();
-    a.push("--json");
-    let out = vsa(&a);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("stdout is one JSON document")
+    common::json("advise", args)
 }
 
-fn num(v: &Value, k: &str) -> f64 {
-    v[k].as_f64().unwrap_or_else(|| panic!("{k} in {v}"))
-}
+use common::num;
 
 fn rel(got: f64, want: f64) -> f64 {
     ((got - want) / want).abs()

@@ -2,34 +2,20 @@
 //! (`host_tests::oracle`, independent of the model), a brute-force check of its verdicts and
 //! of its Pareto front on a small grid, the paper's goals, bad input.
 
-use std::process::{Command, Output};
-
 use host_tests::oracle;
 use serde_json::Value;
 
-fn vsa(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vsa"))
-        .arg("explore")
-        .args(args)
-        .output()
-        .expect("run vsa")
+mod common;
+
+fn vsa(args: &[&str]) -> std::process::Output {
+    common::vsa("explore", args)
 }
 
 fn json(args: &[&str]) -> Value {
-    let mut a = args.to_vec();
-    a.push("--json");
-    let out = vsa(&a);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("stdout is one JSON document")
+    common::json("explore", args)
 }
 
-fn num(v: &Value, k: &str) -> f64 {
-    v[k].as_f64().unwrap_or_else(|| panic!("{k} in {v}"))
-}
+use common::num;
 
 fn close(got: f64, want: f64) -> bool {
     (got - want).abs() <= 1e-6 * want.abs() + 1e-12
