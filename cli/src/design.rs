@@ -61,18 +61,9 @@ use crate::units::{self, Decimal, Kind, Quantity};
 /// Largest number of clutch lengths one `--lengths` range may produce.
 const MAX_ROWS: u32 = 1000;
 
-/// Stiffness, deflection, stress, capacity and backlash of a beam design.
-///
-/// Defaults are the paper preset (design.md §2.2). Values take units: lengths `0.5mm`,
-/// `500um`, `8e-3m`; moduli and stresses `200GPa`, `1500MPa`, `80e9Pa`; torques `2Nm`,
-/// `300mNm`, `2N*m`; stiffness `500Nm/rad`.
-#[derive(Args, Debug, Default)]
-#[command(
-    after_help = "Defaults: the paper preset (design.md §2.2). Values need units: \
-lengths 0.5mm, 500um, 8e-3m; moduli and stresses 200GPa, 1500MPa, 80e9Pa; torques 2Nm, \
-300mNm, 2N*m; stiffness 500Nm/rad.\n\nBad input: one line on stderr, exit code 2."
-)]
-pub struct DesignArgs {
+/// The beam design's options (paper preset unless given), shared with `vsa advise`.
+#[derive(Args, Debug, Default, Clone)]
+pub struct BeamArgs {
     /// Number of beams n, 1..=16 [default: 4]
     #[arg(long, value_name = "N", allow_hyphen_values = true)]
     pub beams: Option<String>,
@@ -100,6 +91,23 @@ pub struct DesignArgs {
     /// Kinetic friction coefficient μ, a bare number [default: 0.4]
     #[arg(long, value_name = "MU", allow_hyphen_values = true)]
     pub friction: Option<String>,
+}
+
+/// Stiffness, deflection, stress, capacity and backlash of a beam design.
+///
+/// Defaults are the paper preset (design.md §2.2). Values take units: lengths `0.5mm`,
+/// `500um`, `8e-3m`; moduli and stresses `200GPa`, `1500MPa`, `80e9Pa`; torques `2Nm`,
+/// `300mNm`, `2N*m`; stiffness `500Nm/rad`.
+#[derive(Args, Debug, Default)]
+#[command(
+    after_help = "Defaults: the paper preset (design.md §2.2). Values need units: \
+lengths 0.5mm, 500um, 8e-3m; moduli and stresses 200GPa, 1500MPa, 80e9Pa; torques 2Nm, \
+300mNm, 2N*m; stiffness 500Nm/rad.\n\nBad input: one line on stderr, exit code 2."
+)]
+pub struct DesignArgs {
+    /// The beam design.
+    #[command(flatten)]
+    pub beam: BeamArgs,
     /// Clutch lengths L: a list `1mm,2mm,3mm` or a range `START..END:STEP` [default: 1mm..5mm:1mm]
     #[arg(
         long,
@@ -126,7 +134,7 @@ pub struct DesignArgs {
 
 /// Runs `vsa design`; returns what to print on stdout.
 pub fn run(args: &DesignArgs) -> CliResult<String> {
-    let design = parse_design(args)?;
+    let design = parse_design(&args.beam)?;
     if let Some(k) = &args.stiffness {
         let k = parse_stiffness(k)?;
         let inv = Inverse::compute(&design, k);
@@ -203,7 +211,7 @@ fn range_gpa(lo: Stress, hi: Stress) -> String {
 }
 
 /// The design from the arguments over the paper preset, validated by the model.
-pub fn parse_design(args: &DesignArgs) -> CliResult<Design> {
+pub fn parse_design(args: &BeamArgs) -> CliResult<Design> {
     let mut p = DesignParams::PAPER;
     let beams_given = args
         .beams
@@ -422,55 +430,8 @@ fn parse_stiffness(s: &str) -> CliResult<Stiffness> {
 /// Clutch lengths from `1mm,2mm` or `1mm..5mm:1mm` (end included), each in (0, l].
 pub fn parse_lengths(s: &str, design: &Design) -> CliResult<Vec<Length>> {
     const ARG: &str = "--lengths";
-    let q = |t: &str| units::parse(t, Kind::Length).map_err(|e| CliError::usage(ARG, e));
-    let decimals: Vec<Decimal> = if let Some((start, rest)) = s.split_once("..") {
-        let Some((end, step)) = rest.split_once(':') else {
-            return Err(CliError::usage(
-                ARG,
-                format!("'{s}' is not a range START..END:STEP (e.g. 1mm..5mm:1mm)"),
-            ));
-        };
-        let (a, b, st) = (q(start)?.value, q(end)?.value, q(step)?.value);
-        if st.negative || st.is_zero() {
-            return Err(CliError::usage(
-                ARG,
-                format!("step {st} mm must be positive"),
-            ));
-        }
-        if b.cmp_value(a).is_lt() {
-            return Err(CliError::usage(
-                ARG,
-                format!("range end {b} mm is below its start {a} mm"),
-            ));
-        }
-        let mut v = Vec::new();
-        for i in 0.. {
-            let x = a.add_times(i, st).ok_or_else(|| {
-                CliError::usage(ARG, format!("'{s}' cannot be enumerated exactly"))
-            })?;
-            if x.cmp_value(b).is_gt() {
-                break;
-            }
-            if i >= MAX_ROWS {
-                return Err(CliError::usage(
-                    ARG,
-                    format!("'{s}' gives more than {MAX_ROWS} lengths"),
-                ));
-            }
-            v.push(x);
-        }
-        v
-    } else {
-        s.split(',')
-            .map(|t| q(t).map(|q| q.value))
-            .collect::<CliResult<_>>()?
-    };
-    if decimals.len() > MAX_ROWS as usize {
-        return Err(CliError::usage(
-            ARG,
-            format!("more than {MAX_ROWS} lengths"),
-        ));
-    }
+    let decimals = units::parse_list(s, Kind::Length, MAX_ROWS, "lengths")
+        .map_err(|e| CliError::usage(ARG, e))?;
     let l = design.params().beam_length;
     decimals
         .into_iter()
@@ -898,8 +859,8 @@ pub struct JsonInverse {
 mod tests {
     use super::*;
 
-    fn args(f: impl FnOnce(&mut DesignArgs)) -> DesignArgs {
-        let mut a = DesignArgs::default();
+    fn beam(f: impl FnOnce(&mut BeamArgs)) -> BeamArgs {
+        let mut a = BeamArgs::default();
         f(&mut a);
         a
     }
@@ -927,27 +888,27 @@ mod tests {
 
     #[test]
     fn design_errors_name_the_argument() {
-        let e = parse_design(&args(|a| a.beam_radius = Some("0mm".into()))).unwrap_err();
+        let e = parse_design(&beam(|a| a.beam_radius = Some("0mm".into()))).unwrap_err();
         assert_eq!(
             e.to_string(),
             "--beam-radius: 0 mm is out of range [0.05, 5] mm"
         );
-        let e = parse_design(&args(|a| a.beam_radius = Some("1e30m".into()))).unwrap_err();
+        let e = parse_design(&beam(|a| a.beam_radius = Some("1e30m".into()))).unwrap_err();
         assert!(e
             .to_string()
             .starts_with("--beam-radius: 1e33 mm is out of range"));
-        let e = parse_design(&args(|a| a.modulus = Some("2000GPa".into()))).unwrap_err();
+        let e = parse_design(&beam(|a| a.modulus = Some("2000GPa".into()))).unwrap_err();
         assert_eq!(
             e.to_string(),
             "--modulus: 2000 GPa is out of range [1, 1000] GPa"
         );
-        let e = parse_design(&args(|a| a.shear_modulus = Some("60GPa".into()))).unwrap_err();
+        let e = parse_design(&beam(|a| a.shear_modulus = Some("60GPa".into()))).unwrap_err();
         assert!(e.to_string().starts_with("--shear-modulus: G = 60 GPa"));
-        let e = parse_design(&args(|a| a.pitch_radius = Some("0.4mm".into()))).unwrap_err();
+        let e = parse_design(&beam(|a| a.pitch_radius = Some("0.4mm".into()))).unwrap_err();
         assert!(e
             .to_string()
             .starts_with("--pitch-radius: 0.4 mm is out of range"));
-        let e = parse_design(&args(|a| {
+        let e = parse_design(&beam(|a| {
             a.beam_radius = Some("3mm".into());
             a.pitch_radius = Some("2mm".into());
         }))
@@ -955,13 +916,13 @@ mod tests {
         assert!(e
             .to_string()
             .contains("larger than the beam radius r = 3 mm"));
-        let e = parse_design(&args(|a| a.clutch_thickness = Some("8mm".into()))).unwrap_err();
+        let e = parse_design(&beam(|a| a.clutch_thickness = Some("8mm".into()))).unwrap_err();
         assert!(e.to_string().starts_with("--clutch-thickness: 8 mm"));
-        let e = parse_design(&args(|a| a.beams = Some("300".into()))).unwrap_err();
+        let e = parse_design(&beam(|a| a.beams = Some("300".into()))).unwrap_err();
         assert!(e.to_string().starts_with("--beams:"));
-        let e = parse_design(&args(|a| a.friction = Some("3".into()))).unwrap_err();
+        let e = parse_design(&beam(|a| a.friction = Some("3".into()))).unwrap_err();
         assert_eq!(e.to_string(), "--friction: 3 is out of range [0, 2]");
-        assert!(parse_design(&args(|_| ())).is_ok());
+        assert!(parse_design(&beam(|_| ())).is_ok());
     }
 
     #[test]

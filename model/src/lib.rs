@@ -14,6 +14,8 @@
 //! * [`backlash`]: paper eqs. 5–7 and the free-play dead zone of the coupling;
 //! * [`hysteresis`]: friction hysteresis branches and their state machine (§2.1);
 //! * [`dynamics`]: natural frequency and the stiffness/clutch setting for a wanted one;
+//! * [`material`]: beam materials (E, G, σ_allow, density, sources); [`sizing`]: a design's
+//!   mass, stored energy and fit against goals (the explorer's numbers);
 //! * [`fixmath`]: integer square and cube roots;
 //! * [`sensors`]: the sensors' resolutions, their count-to-radian constants and the
 //!   encoder wrap;
@@ -50,8 +52,10 @@ pub mod dynamics;
 pub mod error;
 pub mod fixmath;
 pub mod hysteresis;
+pub mod material;
 pub mod sensors;
 pub mod servo;
+pub mod sizing;
 pub mod stiffness;
 pub mod stress;
 pub mod supervisor;

@@ -435,7 +435,24 @@ pub fn allowable_stress_pa(design: &Design) -> f64 {
 ///
 /// # Errors
 /// The controller rejected the configuration or the command.
-pub fn run<F: FnMut(&Sample)>(sc: &Scenario, mut on_sample: F) -> Result<Metrics, ControlError> {
+pub fn run<F: FnMut(&Sample)>(sc: &Scenario, on_sample: F) -> Result<Metrics, ControlError> {
+    run_script(sc, |_| None, on_sample)
+}
+
+/// As [`run`], and `n` ticks after `sc.command` (n ≥ 1) the command `script(n)`, if any,
+/// replaces it: a trajectory given as a sequence of moves (`vsa advise --trajectory`).
+///
+/// # Errors
+/// The controller rejected the configuration or a command.
+pub fn run_script<S, F>(
+    sc: &Scenario,
+    mut script: S,
+    mut on_sample: F,
+) -> Result<Metrics, ControlError>
+where
+    S: FnMut(u32) -> Option<Command>,
+    F: FnMut(&Sample),
+{
     let mut plant = plant_for(sc)?;
     let mut ctl = Controller::new(&sc.design, &sc.config)?;
     let mut readings = plant.readings();
@@ -450,6 +467,12 @@ pub fn run<F: FnMut(&Sample)>(sc: &Scenario, mut on_sample: F) -> Result<Metrics
     for tick in 0..rec.total_ticks() {
         if tick == sc.settle_ticks {
             ctl.command(sc.command)?;
+        } else if let Some(cmd) = tick
+            .checked_sub(sc.settle_ticks)
+            .filter(|&n| n > 0)
+            .and_then(&mut script)
+        {
+            ctl.command(cmd)?;
         }
         let meas = Measurements {
             link_encoder: readings.link_encoder,

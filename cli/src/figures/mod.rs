@@ -10,7 +10,7 @@
 //! * `capacity`: stress-limited torque capacity τ_cap(L) with the 2 N·m line.
 
 mod closed_loop;
-mod energy;
+pub mod energy;
 pub(crate) mod plot;
 mod text;
 
