@@ -473,8 +473,9 @@ impl<B: Backend> Core<B> {
         if let Some(r) = reply.as_mut() {
             r.delay_us = delay_us;
         }
-        if let (Some(id), Some(r)) = (after_id, reply.take()) {
-            self.chain = Some((id, r));
+        if let Some(id) = after_id {
+            // Held until the status of the device listed before this one is heard.
+            self.chain = reply.take().map(|r| (id, r));
         }
         (reply.is_some() || after != After::Nothing).then_some(Output { reply, after })
     }
