@@ -81,11 +81,16 @@
 //!
 //! ```text
 //! python3 -m venv /tmp/dxl-venv && /tmp/dxl-venv/bin/pip install dynamixel-sdk pyserial
-//! cargo test -p vsa-dynamixel --test sdk -- --nocapture
+//! cargo test -p vsa-dynamixel --test sdk -- --ignored --nocapture
 //! ```
 //!
-//! (the test runs `examples/pty_bus.rs` — three devices, IDs 1–3, on one pseudo-terminal —
-//! and `tests/sdk_check.py` against it; it says that it skipped when the venv is missing).
+//! The test runs `examples/pty_bus.rs` (three devices, IDs 1–3, on one pseudo-terminal)
+//! and `tests/sdk_check.py` against it, and says that it skipped when the venv is missing.
+//! It is ignored by default because the SDK gives up on a status after 34 ms (twice its
+//! 16 ms USB latency allowance, plus 2 ms), which a heavily loaded host exceeds now and
+//! then; `DXL_LATENCY_MS=100` raises that allowance. The two can also run by hand:
+//! `cargo run -p vsa-dynamixel --example pty_bus -- --link /tmp/vsa-dxl-bus` and
+//! `/tmp/dxl-venv/bin/python dynamixel/tests/sdk_check.py /tmp/vsa-dxl-bus`.
 
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
@@ -95,7 +100,7 @@ pub mod device;
 mod error;
 pub mod instruction;
 mod memory;
-mod rx;
+pub mod rx;
 pub mod table;
 pub mod v1;
 pub mod v2;

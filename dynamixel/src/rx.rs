@@ -1,10 +1,72 @@
-//! The receive window both decoders scan: a fixed buffer of the bytes not yet consumed,
-//! and the idle mark that says which of them arrived before the line last went quiet.
+//! The streaming decoder both protocols share: a fixed window of the bytes not yet
+//! consumed, the idle mark that says which of them arrived before the line last went
+//! quiet, and a [`Framing`] that finds packets in it ([`crate::v1::Framing`],
+//! [`crate::v2::Framing`]).
+
+use crate::error::DecodeError;
+use core::marker::PhantomData;
+
+/// How one protocol finds its packets at the front of a [`Window`].
+pub trait Framing {
+    /// A decoded packet, borrowing the window.
+    type Packet<'a>;
+
+    /// The next packet or rejected candidate at the front of `rx` (consuming it), `None`
+    /// when more bytes are needed.
+    fn next<const N: usize>(rx: &mut Window<N>) -> Option<Result<Self::Packet<'_>, DecodeError>>;
+}
+
+/// Streaming decoder: feed bytes with [`Decoder::push`], tell it when the line goes idle
+/// with [`Decoder::idle`], and take packets and errors from [`Decoder::next`] until it
+/// returns `None`. Never allocates; `N` bytes of buffer.
+pub struct Decoder<F, const N: usize> {
+    rx: Window<N>,
+    framing: PhantomData<F>,
+}
+
+impl<F: Framing, const N: usize> Default for Decoder<F, N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<F: Framing, const N: usize> Decoder<F, N> {
+    /// An empty decoder.
+    #[must_use]
+    pub const fn new() -> Self {
+        Decoder {
+            rx: Window::new(),
+            framing: PhantomData,
+        }
+    }
+
+    /// One received byte.
+    pub fn push(&mut self, byte: u8) {
+        self.rx.push(byte);
+    }
+
+    /// The line has been idle (no byte for at least one character time): an incomplete
+    /// packet received so far will not complete.
+    pub fn idle(&mut self) {
+        self.rx.idle();
+    }
+
+    /// Forget every byte received.
+    pub fn reset(&mut self) {
+        self.rx.clear();
+    }
+
+    /// The next packet or error in the bytes received, `None` when more bytes are needed.
+    #[allow(clippy::should_implement_trait)] // lends from the buffer: not an Iterator
+    pub fn next(&mut self) -> Option<Result<F::Packet<'_>, DecodeError>> {
+        F::next(&mut self.rx)
+    }
+}
 
 /// Received bytes `buf[start..end]`, of which `buf[start..idle_end]` came before the last
 /// idle gap: a packet never spans an idle gap, so a candidate that starts there and is
 /// incomplete is truncated.
-pub(crate) struct Window<const N: usize> {
+pub struct Window<const N: usize> {
     buf: [u8; N],
     start: usize,
     end: usize,
@@ -23,7 +85,7 @@ impl<const N: usize> Window<N> {
 
     /// Append a byte. When the buffer is full of an undecided candidate (the caller did not
     /// drain the decoder), the oldest byte is dropped.
-    pub(crate) fn push(&mut self, byte: u8) {
+    fn push(&mut self, byte: u8) {
         if self.end == N {
             if self.start == 0 {
                 self.start = 1;
@@ -38,24 +100,24 @@ impl<const N: usize> Window<N> {
     }
 
     /// Mark every byte received so far as before an idle gap.
-    pub(crate) fn idle(&mut self) {
+    fn idle(&mut self) {
         self.idle_end = self.end;
     }
 
     /// Forget everything.
-    pub(crate) fn clear(&mut self) {
+    fn clear(&mut self) {
         self.start = 0;
         self.end = 0;
         self.idle_end = 0;
     }
 
     /// The unconsumed bytes.
-    pub(crate) fn avail(&self) -> &[u8] {
+    pub fn avail(&self) -> &[u8] {
         &self.buf[self.start..self.end]
     }
 
     /// Drop the first `n` unconsumed bytes.
-    pub(crate) fn consume(&mut self, n: usize) {
+    pub fn consume(&mut self, n: usize) {
         self.start = (self.start + n).min(self.end);
         if self.start == self.end {
             self.start = 0;
@@ -66,13 +128,13 @@ impl<const N: usize> Window<N> {
 
     /// Whether the candidate at the front started before the last idle gap (so it can no
     /// longer complete).
-    pub(crate) fn front_is_stale(&self) -> bool {
+    pub fn front_is_stale(&self) -> bool {
         self.start < self.idle_end
     }
 
     /// Consume the `n`-byte packet at the front and give mutable access to its bytes (they
     /// stay in place until the next [`Window::push`]).
-    pub(crate) fn take(&mut self, n: usize) -> &mut [u8] {
+    pub fn take(&mut self, n: usize) -> &mut [u8] {
         let from = self.start;
         let to = (from + n).min(self.end);
         self.start = to;

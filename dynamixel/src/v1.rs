@@ -5,7 +5,7 @@
 //! same, so one [`Packet`] type and one [`Decoder`] serve both directions.
 
 use crate::error::{DecodeError, EncodeError};
-use crate::rx::Window;
+use crate::rx::{self, Window};
 
 /// The two header bytes.
 pub const HEADER: [u8; 2] = [0xFF, 0xFF];
@@ -94,50 +94,23 @@ pub fn encode(id: u8, code: u8, params: &[u8], out: &mut [u8]) -> Result<usize, 
 /// or one that the idle line cut short, is reported once and scanning resumes at the byte
 /// after its first header byte, so a packet hidden inside a damaged one is still found.
 /// Never allocates; each byte costs O(1) except the checksum at a candidate's last byte.
-pub struct Decoder {
-    rx: Window<{ MAX_PACKET + 1 }>,
-}
+pub type Decoder = rx::Decoder<Framing, { MAX_PACKET + 1 }>;
 
-impl Default for Decoder {
-    fn default() -> Self {
-        Self::new()
-    }
-}
+/// Protocol 1.0 packet framing, for [`Decoder`].
+pub struct Framing;
 
-impl Decoder {
-    /// An empty decoder.
-    #[must_use]
-    pub const fn new() -> Self {
-        Decoder { rx: Window::new() }
-    }
+impl rx::Framing for Framing {
+    type Packet<'a> = Packet<'a>;
 
-    /// One received byte.
-    pub fn push(&mut self, byte: u8) {
-        self.rx.push(byte);
-    }
-
-    /// The line has been idle (no byte for at least one character time): an incomplete
-    /// packet received so far will not complete.
-    pub fn idle(&mut self) {
-        self.rx.idle();
-    }
-
-    /// Forget every byte received.
-    pub fn reset(&mut self) {
-        self.rx.clear();
-    }
-
-    /// The next packet or error in the bytes received, `None` when more bytes are needed.
-    #[allow(clippy::should_implement_trait)] // lends from the buffer: not an Iterator
-    pub fn next(&mut self) -> Option<Result<Packet<'_>, DecodeError>> {
+    fn next<const N: usize>(rx: &mut Window<N>) -> Option<Result<Packet<'_>, DecodeError>> {
         let total = loop {
-            let a = self.rx.avail();
+            let a = rx.avail();
             match header(a) {
-                Scan::Skip => self.rx.consume(1),
+                Scan::Skip => rx.consume(1),
                 Scan::Empty => return None,
                 Scan::Need => {
-                    if self.rx.front_is_stale() {
-                        self.rx.consume(1);
+                    if rx.front_is_stale() {
+                        rx.consume(1);
                         return Some(Err(DecodeError::Truncated));
                     }
                     return None;
@@ -145,20 +118,20 @@ impl Decoder {
                 Scan::Header => {
                     let len = a[3];
                     if len < 2 {
-                        self.rx.consume(1);
+                        rx.consume(1);
                         return Some(Err(DecodeError::BadLength));
                     }
                     let total = 4 + usize::from(len);
                     if a.len() < total {
-                        if self.rx.front_is_stale() {
-                            self.rx.consume(1);
+                        if rx.front_is_stale() {
+                            rx.consume(1);
                             return Some(Err(DecodeError::Truncated));
                         }
                         return None;
                     }
                     let (id, code) = (a[2], a[4]);
                     if checksum(id, len, code, &a[5..total - 1]) != a[total - 1] {
-                        self.rx.consume(1);
+                        rx.consume(1);
                         return Some(Err(DecodeError::Checksum {
                             id,
                             instruction: code,
@@ -168,7 +141,7 @@ impl Decoder {
                 }
             }
         };
-        let p = self.rx.take(total);
+        let p = rx.take(total);
         Some(Ok(Packet {
             id: p[2],
             code: p[4],

@@ -9,7 +9,7 @@
 //!   ([`ErrorCode`], bit 7 [`ALERT`]).
 
 use crate::error::{DecodeError, EncodeError};
-use crate::rx::Window;
+use crate::rx::{self, Window};
 use crc::{Crc, CRC_16_UMTS};
 
 /// The four header bytes (the fourth is the reserved byte, 0x00).
@@ -165,43 +165,17 @@ fn unstuff(bytes: &mut [u8]) -> Option<usize> {
 /// [`MAX_PACKET`], a CRC mismatch, bad stuffing or an idle line before its end; scanning
 /// then resumes one byte after its header. Stuffing guarantees that a valid packet holds no
 /// header, so a rejected candidate never hides a valid packet's start inside a longer one.
-pub struct Decoder {
-    rx: Window<MAX_PACKET>,
-}
+pub type Decoder = rx::Decoder<Framing, { MAX_PACKET }>;
 
-impl Default for Decoder {
-    fn default() -> Self {
-        Self::new()
-    }
-}
+/// Protocol 2.0 packet framing, for [`Decoder`].
+pub struct Framing;
 
-impl Decoder {
-    /// An empty decoder.
-    #[must_use]
-    pub const fn new() -> Self {
-        Decoder { rx: Window::new() }
-    }
+impl rx::Framing for Framing {
+    type Packet<'a> = Packet<'a>;
 
-    /// One received byte.
-    pub fn push(&mut self, byte: u8) {
-        self.rx.push(byte);
-    }
-
-    /// The line has been idle: an incomplete packet received so far will not complete.
-    pub fn idle(&mut self) {
-        self.rx.idle();
-    }
-
-    /// Forget every byte received.
-    pub fn reset(&mut self) {
-        self.rx.clear();
-    }
-
-    /// The next packet or error in the bytes received, `None` when more bytes are needed.
-    #[allow(clippy::should_implement_trait)] // lends from the buffer: not an Iterator
-    pub fn next(&mut self) -> Option<Result<Packet<'_>, DecodeError>> {
+    fn next<const N: usize>(rx: &mut Window<N>) -> Option<Result<Packet<'_>, DecodeError>> {
         let total = loop {
-            let a = self.rx.avail();
+            let a = rx.avail();
             let need = match a {
                 [] => return None,
                 [b, ..] if *b != 0xFF => None,
@@ -214,23 +188,23 @@ impl Decoder {
                 _ => {
                     let len = usize::from(u16::from_le_bytes([a[5], a[6]]));
                     if len < 3 {
-                        self.rx.consume(1);
+                        rx.consume(1);
                         return Some(Err(DecodeError::BadLength));
                     }
                     if len + 7 > MAX_PACKET {
-                        self.rx.consume(1);
+                        rx.consume(1);
                         return Some(Err(DecodeError::TooLong));
                     }
                     Some(len + 7)
                 }
             };
             let Some(total) = need else {
-                self.rx.consume(1);
+                rx.consume(1);
                 continue;
             };
             if a.len() < total {
-                if self.rx.front_is_stale() {
-                    self.rx.consume(1);
+                if rx.front_is_stale() {
+                    rx.consume(1);
                     return Some(Err(DecodeError::Truncated));
                 }
                 return None;
@@ -238,12 +212,12 @@ impl Decoder {
             let crc = u16::from_le_bytes([a[total - 2], a[total - 1]]);
             if CRC.checksum(&a[..total - 2]) != crc {
                 let (id, instruction) = (a[4], a[7]);
-                self.rx.consume(1);
+                rx.consume(1);
                 return Some(Err(DecodeError::Checksum { id, instruction }));
             }
             break total;
         };
-        let p = self.rx.take(total);
+        let p = rx.take(total);
         let id = p[4];
         let body = &mut p[7..total - 2];
         let Some(n) = unstuff(body) else {

@@ -6,8 +6,11 @@
 //!
 //! ```text
 //! python3 -m venv /tmp/dxl-venv && /tmp/dxl-venv/bin/pip install dynamixel-sdk pyserial
-//! cargo test -p vsa-dynamixel --test sdk -- --nocapture
+//! cargo test -p vsa-dynamixel --test sdk -- --ignored --nocapture
 //! ```
+//!
+//! Ignored by default: on a host busy enough to stall a process for 34 ms the SDK reports
+//! timeouts that say nothing about the protocol.
 
 use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
@@ -24,6 +27,7 @@ fn example() -> PathBuf {
 }
 
 #[test]
+#[ignore = "needs the dynamixel-sdk venv and a quiet host (the SDK times out after 34 ms); run with --ignored"]
 fn dynamixel_sdk_on_the_emulated_bus() {
     let venv = PathBuf::from(std::env::var("DXL_VENV").unwrap_or_else(|_| "/tmp/dxl-venv".into()));
     let python = venv.join("bin").join("python");
