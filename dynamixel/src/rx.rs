@@ -145,3 +145,37 @@ impl<const N: usize> Window<N> {
         &mut self.buf[from..to]
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Window;
+
+    #[test]
+    fn a_full_window_drops_its_oldest_byte() {
+        let mut w = Window::<4>::new();
+        for b in 0..10 {
+            w.push(b);
+        }
+        assert_eq!(w.avail(), [6, 7, 8, 9]);
+        w.consume(1);
+        w.push(10);
+        assert_eq!(w.avail(), [7, 8, 9, 10]);
+    }
+
+    #[test]
+    fn the_idle_mark_moves_with_the_bytes() {
+        let mut w = Window::<4>::new();
+        w.push(1);
+        w.push(2);
+        w.idle();
+        w.consume(1);
+        assert!(w.front_is_stale(), "byte 2 came before the gap");
+        w.push(3);
+        w.push(4);
+        w.push(5); // compacts: 2 moves to the front
+        assert_eq!(w.avail(), [2, 3, 4, 5]);
+        assert!(w.front_is_stale());
+        w.consume(1);
+        assert!(!w.front_is_stale(), "3 came after the gap");
+    }
+}

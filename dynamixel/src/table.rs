@@ -188,7 +188,7 @@ impl Register {
         raw[..n].copy_from_slice(&bytes[..n]);
         let u = u32::from_le_bytes(raw);
         if self.signed {
-            let shift = 32 - 8 * u32::from(self.size);
+            let shift = 32 - 8 * u32::from(self.size.clamp(1, 4));
             // Sign-extend from `size` bytes.
             Some(((u << shift) as i32) >> shift)
         } else {
