@@ -26,8 +26,9 @@ pub const MAX_REPLY: usize = 11 + MAX_DATA + MAX_DATA / 3 + 1;
 pub const BROADCAST_PING_GAP_US: u32 = 3_000;
 /// Bytes of a 2.0 ping status.
 const PING_STATUS_BYTES: u32 = 14;
-/// Most registers one write can cover.
-const MAX_ITEMS: usize = 48;
+/// Most registers one write can cover: a write cannot cross a reserved byte, and the
+/// longest run without one is 15 registers (AX-12A 24–44).
+const MAX_ITEMS: usize = 16;
 
 /// Bits a backend reports from [`Backend::hardware_errors`]: the AX-12A error bits of the
 /// actuator's state, at the same positions as the X series' Hardware Error Status.
@@ -756,5 +757,24 @@ impl<B: Backend> Core<B> {
         self.registered = None;
         self.backend.factory_reset(keep);
         Ok(After::ApplyBusSettings)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::MAX_ITEMS;
+    use crate::table::{AX12A, X_SERIES};
+
+    #[test]
+    fn max_items_covers_the_longest_run_of_registers() {
+        for table in [&AX12A, &X_SERIES] {
+            let (mut run, mut longest, mut next) = (0, 0, None);
+            for r in table.registers() {
+                run = if Some(r.address) == next { run + 1 } else { 1 };
+                longest = longest.max(run);
+                next = Some(r.address + u16::from(r.size));
+            }
+            assert!(longest <= MAX_ITEMS, "{}: {longest}", table.model);
+        }
     }
 }

@@ -334,3 +334,11 @@ fn v2_reboot_and_factory_reset_options() {
     assert_eq!(d.backend().get(Field::Id), 1);
     assert_eq!(d.protocol(), Protocol::V2, "a reset keeps the protocol");
 }
+
+#[test]
+fn footprint() {
+    // What the firmware pays in RAM for one device (the backend aside).
+    let size = std::mem::size_of::<dynamixel::Device<()>>();
+    println!("Device<()>: {size} bytes");
+    assert!(size < 2_200, "{size} bytes");
+}
