@@ -133,7 +133,7 @@ impl<const N: usize> Window<N> {
     }
 
     /// Consume the `n`-byte packet at the front and give mutable access to its bytes (they
-    /// stay in place until the next [`Window::push`]).
+    /// stay in place until the next byte is pushed).
     pub fn take(&mut self, n: usize) -> &mut [u8] {
         let from = self.start;
         let to = (from + n).min(self.end);
