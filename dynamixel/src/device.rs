@@ -318,7 +318,8 @@ impl<B: Backend> Core<B> {
             Ok(p) => p,
             Err(e) => {
                 self.on_decode_error(e)?;
-                let reply = self.status_v1(v1::error::CHECKSUM, &[]);
+                let me = self.id();
+                let reply = self.status_v1(me, v1::error::CHECKSUM, &[]);
                 return Some(Output {
                     reply,
                     after: After::Nothing,
@@ -339,7 +340,7 @@ impl<B: Backend> Core<B> {
             None
         } else {
             let bits = result.err().map_or(0, Refusal::v1_bits);
-            self.status_v1(bits, &data)
+            self.status_v1(me, bits, &data)
         };
         (reply.is_some() || after != After::Nothing).then_some(Output { reply, after })
     }
@@ -375,8 +376,9 @@ impl<B: Backend> Core<B> {
         }
     }
 
-    fn status_v1(&mut self, bits: u8, data: &[u8]) -> Option<Reply> {
-        let me = self.id();
+    /// A status from `me`: the ID the instruction was addressed to, even when it changed
+    /// the ID (the SDK matches replies by the ID it asked).
+    fn status_v1(&mut self, me: u8, bits: u8, data: &[u8]) -> Option<Reply> {
         let hw = self.backend.hardware_errors() & v1::error::HARDWARE;
         let delay_us = self.delay_us();
         let mut bytes = Vec::new();
@@ -393,7 +395,8 @@ impl<B: Backend> Core<B> {
             Ok(p) => p,
             Err(e) => {
                 self.on_decode_error(e)?;
-                let reply = self.status_v2(v2::ErrorCode::Crc as u8, &[]);
+                let me = self.id();
+                let reply = self.status_v2(me, v2::ErrorCode::Crc as u8, &[]);
                 return Some(Output {
                     reply,
                     after: After::Nothing,
@@ -467,7 +470,7 @@ impl<B: Backend> Core<B> {
         let answered = (!broadcast || reply_to_broadcast) && self.answers(p.instruction);
         let mut reply = if answered {
             let code = result.err().map_or(0, |r| r.v2_code() as u8);
-            self.status_v2(code, &data)
+            self.status_v2(me, code, &data)
         } else {
             None
         };
@@ -568,8 +571,7 @@ impl<B: Backend> Core<B> {
     }
 
     /// A status with error number `code` (0: none; then `data` is sent) and the alert bit.
-    fn status_v2(&mut self, code: u8, data: &[u8]) -> Option<Reply> {
-        let me = self.id();
+    fn status_v2(&mut self, me: u8, code: u8, data: &[u8]) -> Option<Reply> {
         let error = code | self.alert();
         let data = if code == 0 { data } else { &[] };
         let delay_us = self.delay_us();

@@ -194,6 +194,23 @@ fn v1_factory_reset_and_hardware_bits() {
 }
 
 #[test]
+fn a_new_id_answers_from_the_old_one_then_the_new() {
+    let mut d = device(1, Protocol::V1);
+    let out = exchange(&mut d, &p1(1, ins::WRITE, &[3, 5]));
+    assert_eq!(status1(&out), [(1, 0, vec![])], "the SDK waits for ID 1");
+    assert_eq!(out[0].after, After::ApplyBusSettings);
+    assert!(exchange(&mut d, &p1(1, ins::PING, &[])).is_empty());
+    assert_eq!(
+        status1(&exchange(&mut d, &p1(5, ins::PING, &[]))),
+        [(5, 0, vec![])]
+    );
+    let mut d = device(1, Protocol::V2);
+    let out = exchange(&mut d, &p2(1, ins::WRITE, &[7, 0, 5]));
+    assert_eq!(status2(&out), [(1, 0, vec![])]);
+    assert_eq!(status2(&exchange(&mut d, &p2(5, ins::PING, &[])))[0].0, 5);
+}
+
+#[test]
 fn switching_protocols_from_either_side() {
     let mut d = device(1, Protocol::V1);
     let out = exchange(&mut d, &p1(1, ins::WRITE, &[63, 2]));
