@@ -100,6 +100,22 @@ fn schedule(
     }
 }
 
+/// One byte heard by device `i`, polled at once: a packet that switches the protocol must
+/// be acted on before the next byte (which may already be in the other protocol).
+fn hear(
+    d: &mut Device<MemoryBackend>,
+    byte: u8,
+    i: usize,
+    now: Instant,
+    queue: &mut Vec<Pending>,
+    reboot: &mut Vec<usize>,
+) {
+    d.push(byte);
+    while let Some(out) = d.poll() {
+        schedule(out, i, now, queue, reboot);
+    }
+}
+
 fn main() -> ExitCode {
     let args = match parse_args() {
         Ok(a) => a,
@@ -147,10 +163,7 @@ fn main() -> ExitCode {
             }
             for (i, d) in devices.iter_mut().enumerate().filter(|(i, _)| *i != p.from) {
                 for &b in &p.bytes {
-                    d.push(b);
-                }
-                while let Some(out) = d.poll() {
-                    schedule(out, i, sent, &mut queue, &mut reboot);
+                    hear(d, b, i, sent, &mut queue, &mut reboot);
                 }
             }
         }
@@ -191,10 +204,7 @@ fn main() -> ExitCode {
             };
             for (i, d) in devices.iter_mut().enumerate() {
                 for &b in &buf[..n] {
-                    d.push(b);
-                }
-                while let Some(out) = d.poll() {
-                    schedule(out, i, now, &mut queue, &mut reboot);
+                    hear(d, b, i, now, &mut queue, &mut reboot);
                 }
             }
             last_rx = Some(now);
