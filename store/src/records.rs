@@ -1,0 +1,327 @@
+//! The records: what each holds, in which unit, its schema version, its range checks, and
+//! how its stored bytes become a value again (or a [`Rejection`] saying why not).
+//!
+//! A stored record is `[version: u8] ++ postcard(fields)`. postcard is not self-describing,
+//! so the version byte is read first and picks the layout; a version this firmware has no
+//! layout for is rejected, never decoded as the current one.
+
+use protocol::{FaultRecord, Gains, Limits, Request, CLUTCH_MAX_UM, CLUTCH_MIN_UM};
+use serde::{de::DeserializeOwned, Deserialize, Serialize};
+
+/// Why a stored record was not applied (the defaults are used instead).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum Rejection {
+    /// The bytes do not decode as the layout of their version.
+    Undecodable,
+    /// Written with a schema version this firmware has no layout or migration for.
+    UnknownVersion {
+        /// The version found in flash.
+        found: u8,
+        /// The version this firmware writes.
+        current: u8,
+    },
+    /// Decoded, but a field fails the checks (the same as over the wire): which and why.
+    Invalid(&'static str),
+    /// The flash could not be read.
+    Flash(crate::FlashFault),
+}
+
+impl core::fmt::Display for Rejection {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Rejection::Undecodable => f.write_str("does not decode"),
+            Rejection::UnknownVersion { found, current } => {
+                write!(
+                    f,
+                    "schema version {found} unknown (this firmware: {current})"
+                )
+            }
+            Rejection::Invalid(why) => f.write_str(why),
+            Rejection::Flash(e) => write!(f, "flash: {e}"),
+        }
+    }
+}
+
+/// A record of the set: a name for the boot log, a schema version, and the decoding of
+/// every version this firmware knows.
+///
+/// When a layout changes: keep the old struct (e.g. `ConfigV1`), bump [`Record::VERSION`],
+/// and make [`Record::migrate`] decode the old layout and convert it, checked like any
+/// other value afterwards. Today every record is at version 1 and nothing older exists.
+pub trait Record: Serialize + DeserializeOwned {
+    /// Name in the boot log and in errors.
+    const NAME: &'static str;
+    /// Schema version this firmware writes.
+    const VERSION: u8;
+
+    /// Decodes a body written with an older or unknown `version`.
+    ///
+    /// # Errors
+    /// [`Rejection::UnknownVersion`] unless a migration exists for `version`.
+    fn migrate(version: u8, _body: &[u8]) -> Result<Self, Rejection> {
+        Err(Rejection::UnknownVersion {
+            found: version,
+            current: Self::VERSION,
+        })
+    }
+
+    /// The range checks of the fields that do not need the device (see the type's docs).
+    ///
+    /// # Errors
+    /// The first failing check, as a short phrase for the log.
+    fn check(&self) -> Result<(), &'static str>;
+}
+
+/// Encodes `record` as `[version] ++ postcard` into `buf`; the bytes written.
+pub(crate) fn encode<R: Record>(record: &R, buf: &mut [u8]) -> Result<usize, postcard::Error> {
+    let (head, body) = buf
+        .split_first_mut()
+        .ok_or(postcard::Error::SerializeBufferFull)?;
+    *head = R::VERSION;
+    Ok(1 + postcard::to_slice(record, body)?.len())
+}
+
+/// Decodes stored bytes: the current version directly, any other through
+/// [`Record::migrate`]. Trailing bytes make it [`Rejection::Undecodable`].
+pub(crate) fn decode<R: Record>(bytes: &[u8]) -> Result<R, Rejection> {
+    let (&version, body) = bytes.split_first().ok_or(Rejection::Undecodable)?;
+    if version != R::VERSION {
+        return R::migrate(version, body);
+    }
+    match postcard::take_from_bytes::<R>(body) {
+        Ok((value, [])) => Ok(value),
+        _ => Err(Rejection::Undecodable),
+    }
+}
+
+/// How the clutch was configured: the protocol's two requests for it, in their units.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Clutch {
+    /// [`Request::SetClutchLength`]: active beam length L, µm, in
+    /// [`CLUTCH_MIN_UM`]..=[`CLUTCH_MAX_UM`].
+    LengthUm(u32),
+    /// [`Request::SetStiffness`]: joint stiffness k, mN·m/rad (L(k) is recomputed at boot).
+    StiffnessMnmPerRad(u32),
+}
+
+/// The active configuration: what the host set over the protocol, in the protocol's units.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Config {
+    /// Clutch length or stiffness.
+    pub clutch: Clutch,
+    /// Link inertia about the output axis, kg·mm² (the controller's unit: 1000 =
+    /// 1e-3 kg·m²), in [`model::control::config::MIN_INERTIA`]..=
+    /// [`model::control::config::MAX_INERTIA`].
+    pub link_inertia_kg_mm2: u32,
+    /// PID gains ([`Request::SetGains`]); `None` = the automatic schedule
+    /// ([`Request::AutoGains`]).
+    pub gains: Option<Gains>,
+    /// Live limits and the position window ([`Request::SetLimits`]).
+    pub limits: Limits,
+    /// Heartbeat (command) timeout, ms, ≥ 1 (the supervisor's `command_timeout_ms`).
+    pub command_timeout_ms: u32,
+}
+
+impl Record for Config {
+    const NAME: &'static str = "config";
+    const VERSION: u8 = 1;
+
+    /// The checks of [`Request::validate`] on the equivalent requests, the controller's
+    /// inertia range and the supervisor's timeout ≥ 1. Whether the design reaches the
+    /// clutch length or stiffness is the device's check (the firmware's validator).
+    fn check(&self) -> Result<(), &'static str> {
+        let clutch = match self.clutch {
+            Clutch::LengthUm(length_um) => Request::SetClutchLength { length_um },
+            Clutch::StiffnessMnmPerRad(stiffness_mnm_per_rad) => Request::SetStiffness {
+                stiffness_mnm_per_rad,
+            },
+        };
+        if clutch.validate().is_err() {
+            return Err("clutch length or stiffness out of range");
+        }
+        let inertia = model::control::config::MIN_INERTIA..=model::control::config::MAX_INERTIA;
+        if !i32::try_from(self.link_inertia_kg_mm2).is_ok_and(|j| inertia.contains(&j)) {
+            return Err("link inertia outside 1..=1000000 kg·mm²");
+        }
+        if self.gains.is_some_and(|g| !g.is_valid()) {
+            return Err("gain above its bound");
+        }
+        if !self.limits.is_valid() {
+            return Err("limits out of range or position window empty");
+        }
+        if self.command_timeout_ms == 0 {
+            return Err("command timeout 0 ms");
+        }
+        Ok(())
+    }
+}
+
+/// The calibration of a real build (the result of the calibration sequence), in integer
+/// units of the protocol's kind.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Calibration {
+    /// Motor polarity, ±1 (−1: the bridge's sense is reversed in software).
+    pub motor_polarity: i8,
+    /// Link encoder direction, ±1.
+    pub encoder_direction: i8,
+    /// Gear potentiometer direction, ±1.
+    pub pot_direction: i8,
+    /// Current-sense offset, ADC counts, |·| ≤ [`CURRENT_OFFSET_MAX`].
+    pub current_offset_counts: i16,
+    /// Pot-to-encoder alignment offset, pot counts, |·| ≤ [`POT_OFFSET_MAX`].
+    pub pot_offset_counts: i16,
+    /// Motor winding resistance, mΩ, > 0.
+    pub resistance_mohm: u32,
+    /// Back-EMF constant, µV·s/rad, > 0.
+    pub back_emf_uv_s_per_rad: u32,
+    /// Gear friction torque at the output, µN·m.
+    pub gear_friction_unm: u32,
+    /// Link inertia, kg·mm², as [`Config::link_inertia_kg_mm2`].
+    pub link_inertia_kg_mm2: u32,
+    /// Identified joint stiffness, mN·m/rad; `None` where the sensors cannot resolve it.
+    pub stiffness_mnm_per_rad: Option<u32>,
+    /// Clutch length from that stiffness, µm, in [`CLUTCH_MIN_UM`]..=[`CLUTCH_MAX_UM`];
+    /// `None` where the stiffness is not resolved.
+    pub clutch_length_um: Option<u32>,
+    /// Relative 1-σ uncertainty of the stiffness, ‰, ≤ 1000.
+    pub stiffness_uncertainty_permille: u16,
+}
+
+/// Largest |current-sense offset|, ADC counts: half the 12-bit scale.
+pub const CURRENT_OFFSET_MAX: i16 = model::control::config::ADC_MID as i16;
+/// Largest |pot offset|, pot counts: half the pot's 1024 counts.
+pub const POT_OFFSET_MAX: i16 = (model::control::config::POT_COUNTS / 2) as i16;
+
+impl Record for Calibration {
+    const NAME: &'static str = "calibration";
+    const VERSION: u8 = 1;
+
+    fn check(&self) -> Result<(), &'static str> {
+        let sign = |s: i8| s == 1 || s == -1;
+        if !(sign(self.motor_polarity) && sign(self.encoder_direction) && sign(self.pot_direction))
+        {
+            return Err("polarity or direction not ±1");
+        }
+        if self.current_offset_counts.unsigned_abs() > CURRENT_OFFSET_MAX.unsigned_abs()
+            || self.pot_offset_counts.unsigned_abs() > POT_OFFSET_MAX.unsigned_abs()
+        {
+            return Err("sensor offset beyond half scale");
+        }
+        if self.resistance_mohm == 0 || self.back_emf_uv_s_per_rad == 0 {
+            return Err("resistance or back-EMF constant 0");
+        }
+        let inertia = model::control::config::MIN_INERTIA..=model::control::config::MAX_INERTIA;
+        if !i32::try_from(self.link_inertia_kg_mm2).is_ok_and(|j| inertia.contains(&j)) {
+            return Err("link inertia outside 1..=1000000 kg·mm²");
+        }
+        if self.stiffness_mnm_per_rad == Some(0) {
+            return Err("stiffness 0");
+        }
+        if self
+            .clutch_length_um
+            .is_some_and(|l| !(CLUTCH_MIN_UM..=CLUTCH_MAX_UM).contains(&l))
+        {
+            return Err("clutch length out of range");
+        }
+        if self.stiffness_uncertainty_permille > 1000 {
+            return Err("stiffness uncertainty above 1000 ‰");
+        }
+        Ok(())
+    }
+}
+
+/// Identity and settings on a Dynamixel bus, as the AX-12A's EEPROM area keeps them
+/// (addresses 3–16 of its control table; the baud rate in bit/s rather than the register's
+/// protocol-dependent code).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BusSettings {
+    /// Bus ID, 0..=253 (254 is the broadcast ID).
+    pub id: u8,
+    /// Baud rate, bit/s, in [`BAUD_MIN`]..=[`BAUD_MAX`].
+    pub baud_bps: u32,
+    /// Dynamixel protocol version, 1 or 2.
+    pub protocol_version: u8,
+    /// Return delay, units of 2 µs (250 = 500 µs).
+    pub return_delay_2us: u8,
+    /// Status return level, 0 (ping only), 1 (ping and read), 2 (all).
+    pub status_return_level: u8,
+    /// Clockwise angle limit, position units (0..=1023 over 300°, 0.29° each).
+    pub cw_angle_limit: u16,
+    /// Counter-clockwise angle limit, position units, ≥ the clockwise one (both 0: wheel
+    /// mode).
+    pub ccw_angle_limit: u16,
+}
+
+/// Lowest baud rate, bit/s (the Dynamixel SDK's list starts at 9600).
+pub const BAUD_MIN: u32 = 9_600;
+/// Highest baud rate, bit/s (the SDK's list ends at 4 000 000).
+pub const BAUD_MAX: u32 = 4_000_000;
+/// Largest angle limit, position units (1023 = 300°).
+pub const ANGLE_LIMIT_MAX: u16 = 1023;
+
+impl BusSettings {
+    /// The AX-12A's factory settings: ID 1, 1 Mbit/s (register 1), protocol 1.0, return
+    /// delay 250 (500 µs), status return level 2, angle limits 0 and 1023.
+    pub const AX12A_DEFAULT: BusSettings = BusSettings {
+        id: 1,
+        baud_bps: 1_000_000,
+        protocol_version: 1,
+        return_delay_2us: 250,
+        status_return_level: 2,
+        cw_angle_limit: 0,
+        ccw_angle_limit: ANGLE_LIMIT_MAX,
+    };
+}
+
+impl Record for BusSettings {
+    const NAME: &'static str = "bus";
+    const VERSION: u8 = 1;
+
+    /// Ranges of the control table. Whether the UART makes the baud rate is the device's.
+    fn check(&self) -> Result<(), &'static str> {
+        if self.id > 253 {
+            return Err("bus ID above 253");
+        }
+        if !(BAUD_MIN..=BAUD_MAX).contains(&self.baud_bps) {
+            return Err("baud rate outside 9600..=4000000");
+        }
+        if !matches!(self.protocol_version, 1 | 2) {
+            return Err("Dynamixel protocol not 1 or 2");
+        }
+        if self.status_return_level > 2 {
+            return Err("status return level above 2");
+        }
+        if self.ccw_angle_limit > ANGLE_LIMIT_MAX || self.cw_angle_limit > self.ccw_angle_limit {
+            return Err("angle limits above 1023 or clockwise above counter-clockwise");
+        }
+        Ok(())
+    }
+}
+
+/// One entry of the fault log: a latched fault as the protocol reports it (code, value,
+/// and `tick` = uptime in ms), numbered across boots.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FaultEntry {
+    /// Number of the fault since the log was last cleared by a factory reset (wrapping
+    /// never in practice: 2³² faults).
+    pub seq: u32,
+    /// The fault.
+    pub fault: FaultRecord,
+}
+
+impl Record for FaultEntry {
+    const NAME: &'static str = "faults";
+    const VERSION: u8 = 1;
+
+    /// Any code the protocol knows (checked while decoding) and any value are valid.
+    fn check(&self) -> Result<(), &'static str> {
+        Ok(())
+    }
+}
