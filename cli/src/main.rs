@@ -17,9 +17,11 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod advise;
 mod board;
 mod design;
 mod error;
+mod explore;
 mod figures;
 mod format;
 mod plot;
@@ -46,6 +48,10 @@ struct Cli {
 enum Command {
     /// Stiffness, deflection, stress, capacity and backlash of a beam design.
     Design(design::DesignArgs),
+    /// The clutch setting that saves energy for a periodic task (closed-loop simulation).
+    Advise(advise::AdviseArgs),
+    /// Search beam designs against capacity, deflection, mass and volume goals.
+    Explore(explore::ExploreArgs),
     /// Draw the paper's figures (SVG, PNG and the CSV behind each).
     Figures(figures::FiguresArgs),
     /// Run the position controller against the simulated actuator on the host.
@@ -71,6 +77,12 @@ fn run(cli: Cli) -> CliResult<()> {
     match cli.command {
         Command::Design(args) => {
             offline(&cli.conn).and_then(|()| design::run(&args).map(|s| print(&s)))
+        }
+        Command::Advise(args) => {
+            offline(&cli.conn).and_then(|()| advise::run(&args).map(|s| print(&s)))
+        }
+        Command::Explore(args) => {
+            offline(&cli.conn).and_then(|()| explore::run(&args).map(|s| print(&s)))
         }
         Command::Figures(args) => offline(&cli.conn).and_then(|()| figures::run(&args)),
         Command::Simulate(args) => offline(&cli.conn).and_then(|()| {

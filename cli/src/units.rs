@@ -34,6 +34,12 @@ pub enum Kind {
     Frequency,
     /// A current, unit A.
     Current,
+    /// A mass, unit g.
+    Mass,
+    /// A volume, unit mm³.
+    Volume,
+    /// A moment of inertia, unit kg·mm² (the model's [`model::Inertia`]).
+    Inertia,
 }
 
 /// Torque unit spellings and their power of ten relative to N·m.
@@ -83,6 +89,18 @@ impl Kind {
             Kind::Time => own(&[("s", 0), ("ms", -3), ("us", -6), ("µs", -6)]),
             Kind::Frequency => own(&[("Hz", 0), ("mHz", -3), ("kHz", 3)]),
             Kind::Current => own(&[("A", 0), ("mA", -3)]),
+            Kind::Mass => own(&[("g", 0), ("mg", -3), ("kg", 3)]),
+            Kind::Volume => own(&[("mm3", 0), ("mm³", 0), ("cm3", 3), ("cm³", 3)]),
+            Kind::Inertia => own(&[
+                ("kgm2", 6),
+                ("kg*m2", 6),
+                ("kg·m²", 6),
+                ("kg.m2", 6),
+                ("gcm2", -1),
+                ("g*cm2", -1),
+                ("kgmm2", 0),
+                ("kg*mm2", 0),
+            ]),
         }
     }
 
@@ -97,6 +115,9 @@ impl Kind {
             Kind::Time => "s",
             Kind::Frequency => "Hz",
             Kind::Current => "A",
+            Kind::Mass => "g",
+            Kind::Volume => "mm³",
+            Kind::Inertia => "kg·mm²",
         }
     }
 
@@ -111,6 +132,9 @@ impl Kind {
             Kind::Time => "s, ms, us",
             Kind::Frequency => "Hz, mHz, kHz",
             Kind::Current => "A, mA",
+            Kind::Mass => "g, mg, kg",
+            Kind::Volume => "mm3, cm3",
+            Kind::Inertia => "kgm2 (or kg*m2, kg·m²), gcm2, kgmm2",
         }
     }
 }
@@ -469,6 +493,51 @@ pub fn parse(s: &str, kind: Kind) -> Result<Quantity, String> {
         value: number.scaled(e),
         kind,
     })
+}
+
+/// Parses a list `1mm,2mm,3mm` or a range `START..END:STEP` (end included) of quantities
+/// of `kind`, at most `max` of them (`noun` names them in messages).
+pub fn parse_list(s: &str, kind: Kind, max: u32, noun: &str) -> Result<Vec<Decimal>, String> {
+    let unit = kind.model_unit();
+    let q = |t: &str| parse(t, kind);
+    let decimals: Vec<Decimal> = if let Some((start, rest)) = s.split_once("..") {
+        let Some((end, step)) = rest.split_once(':') else {
+            return Err(format!(
+                "'{s}' is not a range START..END:STEP (e.g. 1mm..5mm:1mm)"
+            ));
+        };
+        let (a, b, st) = (q(start)?.value, q(end)?.value, q(step)?.value);
+        if st.negative || st.is_zero() {
+            return Err(format!("step {st} {unit} must be positive"));
+        }
+        if b.cmp_value(a).is_lt() {
+            return Err(format!(
+                "range end {b} {unit} is below its start {a} {unit}"
+            ));
+        }
+        let mut v = Vec::new();
+        for i in 0.. {
+            let x = a
+                .add_times(i, st)
+                .ok_or_else(|| format!("'{s}' cannot be enumerated exactly"))?;
+            if x.cmp_value(b).is_gt() {
+                break;
+            }
+            if i >= max {
+                return Err(format!("'{s}' gives more than {max} {noun}"));
+            }
+            v.push(x);
+        }
+        v
+    } else {
+        s.split(',')
+            .map(|t| q(t).map(|q| q.value))
+            .collect::<Result<_, _>>()?
+    };
+    if decimals.len() > max as usize {
+        return Err(format!("more than {max} {noun}"));
+    }
+    Ok(decimals)
 }
 
 /// Parses a dimensionless number (friction coefficient).

@@ -372,3 +372,119 @@ impl HysteresisFollower {
         }
     }
 }
+
+// ---------------------------------------------------------------------------------------
+// Sizing against goals (design.md §10) and the linear two-mass actuator model, for the
+// designer's tools (`vsa explore`, `vsa advise`).
+
+impl Design {
+    /// Stress-limited deflection in closed form, θ_cap = σ_allow·L²/(3·E·r·R) \[rad\]
+    /// (`design.md` §10; independent of n). Equal to [`Design::deflection_capacity`].
+    pub fn deflection_capacity_closed_form(&self, l_act: f64) -> f64 {
+        self.sigma_allow * l_act * l_act / (3.0 * self.e * self.r * self.pitch_r)
+    }
+
+    /// Elastic energy stored at the stress limit, n·σ_allow²·π·r²·L/(24·E) \[J\]
+    /// (`design.md` §10: ½·τ_cap·θ_cap, ∝ σ²/E × active volume).
+    pub fn energy_at_capacity(&self, l_act: f64) -> f64 {
+        self.nf() * self.sigma_allow.powi(2) * PI * self.r * self.r * l_act / (24.0 * self.e)
+    }
+
+    /// Mass of the n beams of whole length `l_total` \[m\] at density `rho` \[kg/m³\],
+    /// n·π·r²·l_total·ρ \[kg\].
+    pub fn beam_mass(&self, l_total: f64, rho: f64) -> f64 {
+        self.nf() * PI * self.r * self.r * l_total * rho
+    }
+
+    /// Volume of the cylinder the beam ring and its slots sweep, π·(R + r_slot)²·l_total
+    /// \[m³\].
+    pub fn envelope_volume(&self, l_total: f64) -> f64 {
+        let outer = self.pitch_r + self.slot_radius();
+        PI * outer * outer * l_total
+    }
+
+    /// The clutch slots fit: R > r_slot and, for n ≥ 2, neighbouring slots do not overlap,
+    /// 2·R·sin(π/n) ≥ 2·r_slot.
+    pub fn slots_fit(&self) -> bool {
+        let rs = self.slot_radius();
+        self.pitch_r > rs && (self.n < 2 || self.pitch_r * (PI / self.nf()).sin() >= rs)
+    }
+}
+
+/// The shortest active length with which any number of beams of a material (E, σ_allow)
+/// can give capacity `torque` and safe deflection `theta` at once, whatever r and R
+/// (beams packed around the axis, n → ∞):
+/// τ_cap ≥ T needs n·r²·L ≥ 12·T·E·θ/(π·σ²) (with the largest R that θ_cap ≥ θ allows),
+/// and beams side by side need n·r² ≤ π·σ·L²/(3·E·θ), so L³ ≥ 36·T·E²·θ²/(π²·σ³) \[m\].
+pub fn min_active_length(torque: f64, theta: f64, e: f64, sigma_allow: f64) -> f64 {
+    (36.0 * torque * e * e * theta * theta / (PI * PI * sigma_allow.powi(3))).cbrt()
+}
+
+/// The actuator as a linear two-mass system: gear (motor and gearbox at the output) J_g
+/// with viscous friction b_g, driven by the motor torque k_t·i; beams k; link J_l with
+/// viscous friction b_l and a constant load; i = (V − k_e·ω_g)/R (no inductance,
+/// `design.md` §3).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TwoMass {
+    /// Gear-side inertia at the output \[kg·m²\].
+    pub j_gear: f64,
+    /// Link inertia \[kg·m²\].
+    pub j_link: f64,
+    /// Coupling stiffness \[N·m/rad\].
+    pub k: f64,
+    /// Gear viscous friction \[N·m·s/rad\].
+    pub b_gear: f64,
+    /// Link viscous friction \[N·m·s/rad\].
+    pub b_link: f64,
+    /// Armature resistance \[Ω\].
+    pub resistance: f64,
+    /// Torque constant at the output \[N·m/A\].
+    pub k_t: f64,
+    /// Back-EMF constant at the output \[V·s/rad\].
+    pub k_e: f64,
+    /// Constant load on the link \[N·m\].
+    pub load: f64,
+}
+
+impl TwoMass {
+    /// The free coupling mode (motor torque zero): ω = √(k·(1/J_g + 1/J_l)) \[rad/s\].
+    pub fn natural_frequency(&self) -> f64 {
+        (self.k * (1.0 / self.j_gear + 1.0 / self.j_link)).sqrt()
+    }
+
+    /// Gear amplitude over link amplitude and the motor torque amplitude \[N·m\] when the
+    /// link follows A·sin(ωt) exactly (complex amplitudes, the link's as the reference):
+    /// k·(Θ_g − Θ_l) = (−J_l·ω² + jω·b_l)·Θ_l, T_m = (−J_g·ω² + jω·b_g)·Θ_g + k·(Θ_g − Θ_l).
+    fn phasors(&self, amplitude: f64, omega: f64) -> ((f64, f64), (f64, f64)) {
+        let spring = (-self.j_link * omega * omega, omega * self.b_link); // k·(Θ_g − Θ_l)/Θ_l
+        let theta_g = (
+            amplitude * (1.0 + spring.0 / self.k),
+            amplitude * spring.1 / self.k,
+        );
+        let gear = (-self.j_gear * omega * omega, omega * self.b_gear);
+        let torque = (
+            gear.0 * theta_g.0 - gear.1 * theta_g.1 + amplitude * spring.0,
+            gear.0 * theta_g.1 + gear.1 * theta_g.0 + amplitude * spring.1,
+        );
+        (theta_g, torque)
+    }
+
+    /// Electrical energy per cycle ∮V·i dt \[J\] when the link follows A·sin(ωt):
+    /// R·(i₀² + |I|²/2)·T + k_e·Re(jω·Θ_g·conj(I))/2·T, i₀ = load/k_t the holding current.
+    pub fn energy_per_cycle(&self, amplitude: f64, omega: f64) -> f64 {
+        let (theta_g, torque) = self.phasors(amplitude, omega);
+        let period = 2.0 * PI / omega;
+        let i = (torque.0 / self.k_t, torque.1 / self.k_t);
+        let i0 = self.load / self.k_t;
+        let copper = self.resistance * (i0 * i0 + (i.0 * i.0 + i.1 * i.1) / 2.0) * period;
+        // jω·Θ_g = (−ω·Θ_g.im, ω·Θ_g.re); Re(a·conj(b)) = a.re·b.re + a.im·b.im.
+        let emf = self.k_e * (-omega * theta_g.1 * i.0 + omega * theta_g.0 * i.1) / 2.0 * period;
+        copper + emf
+    }
+
+    /// Gear amplitude \[rad\] when the link follows A·sin(ωt).
+    pub fn gear_amplitude(&self, amplitude: f64, omega: f64) -> f64 {
+        let (g, _) = self.phasors(amplitude, omega);
+        g.0.hypot(g.1)
+    }
+}

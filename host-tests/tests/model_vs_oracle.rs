@@ -17,6 +17,9 @@
 //! it is unset). `PROPTEST_RNG_SEED=S` fixes the seed. Each property prints a one-line
 //! report per function (max relative error, max |Δ|/tolerance, error counts): run with
 //! `cargo test -p host-tests --test model_vs_oracle -- --nocapture`.
+//!
+//! Each property opens with the same few lines (build the design and the oracle, draw L)
+//! on purpose: every test reads on its own, next to the oracle function it checks.
 
 use std::cell::RefCell;
 use std::collections::BTreeMap;

@@ -75,7 +75,8 @@ use plant::PlantConfig;
 use plotters::prelude::SeriesLabelPosition;
 
 use super::plot::{Figure, Panel, Series, COLORS};
-use super::{c, f, Csv};
+use super::{c, Csv};
+use crate::design::to_f64;
 use crate::format::trim;
 
 /// Amplitude of the sine, rad.
@@ -163,18 +164,21 @@ pub struct CycleEnergy {
     pub rms_error_rad: f64,
     /// A live limit was active in the averaged cycles.
     pub limited: bool,
+    /// Largest |true beam root stress| over the averaged cycles, Pa.
+    pub peak_stress_pa: f64,
 }
 
 fn err<E: std::fmt::Display>(what: &'static str) -> impl Fn(E) -> String {
     move |e| format!("{what}: {e}")
 }
 
-/// Ticks of `m.cycles` cycles of `m` (an error unless whole).
+/// Ticks of `m.cycles` cycles of `m`, to the nearest tick (exact for the figure's
+/// motions; the energies are divided by the cycles the window really holds).
 fn window_ticks(m: &Motion) -> Result<u32, String> {
     let t = f64::from(m.cycles) * 1000.0 / m.frequency_hz;
-    if (t - t.round()).abs() > 1e-9 || t < 1.0 {
+    if !(1.0..=f64::from(u32::MAX / 2)).contains(&t) {
         return Err(format!(
-            "{} cycles at {} Hz are not a whole number of ticks",
+            "{} cycles at {} Hz do not fit in a simulation window",
             m.cycles, m.frequency_hz
         ));
     }
@@ -201,25 +205,40 @@ pub fn rigid_estimate(pc: &PlantConfig, m: &Motion) -> f64 {
     r / (kt * kt) * mean_sq * period + ke / kt * (b * a * a * w * w * period / 2.0 + 4.0 * a * tc)
 }
 
-/// Runs `m` at `len` and integrates the energies; `Ok(None)` when the controller rejects
-/// the configuration.
+/// Runs `m` with the controller configured by `cfg` (clutch setting, link inertia, …) and
+/// integrates the energies; `Ok(None)` when the controller rejects the configuration.
+/// (`vsa advise` runs its tasks through this function too.)
 pub fn energy_per_cycle(
     d: &Design,
-    len: Length,
+    cfg: &Config,
     m: &Motion,
 ) -> Result<Option<CycleEnergy>, String> {
-    let cfg = Config::paper(len);
-    if Schedule::new(d, &cfg).is_err() {
-        return Ok(None);
-    }
-    let pc = harness::plant_config(d, &cfg, m.load_nm as f32).map_err(err("plant"))?;
-    let window = window_ticks(m)?;
     let cmd = Command::Sine {
         amplitude: Angle::from_micro((m.amplitude_rad * 1e6).round() as i64)
             .map_err(err("amplitude"))?,
         frequency: Frequency::from_hz(I32F32::from_num(m.frequency_hz))
             .map_err(err("frequency"))?,
     };
+    energy_of_commands(d, cfg, m, cmd, |_| None)
+}
+
+/// As [`energy_per_cycle`] for any periodic motion of frequency `m.frequency_hz` given as
+/// commands: `first` when the motion starts, `script(n)` n ticks later
+/// ([`harness::run_script`]); `m.amplitude_rad` is not used.
+pub fn energy_of_commands(
+    d: &Design,
+    cfg: &Config,
+    m: &Motion,
+    first: Command,
+    script: impl FnMut(u32) -> Option<Command>,
+) -> Result<Option<CycleEnergy>, String> {
+    let cfg = *cfg;
+    if Schedule::new(d, &cfg).is_err() {
+        return Ok(None);
+    }
+    let pc = harness::plant_config(d, &cfg, m.load_nm as f32).map_err(err("plant"))?;
+    let window = window_ticks(m)?;
+    let cmd = first;
     let mut sc = Scenario::new(cfg, cmd);
     sc.design = *d;
     sc.load_nm = m.load_nm as f32;
@@ -235,7 +254,7 @@ pub fn energy_per_cycle(
     let from = SETTLE_TICKS + SKIP_TICKS;
     let mut e = CycleEnergy::default();
     let mut last_gear = 0.0f64;
-    let metrics = harness::run(&sc, |s| {
+    let metrics = harness::run_script(&sc, script, |s| {
         if s.tick >= from {
             let v = f64::from(s.duty).clamp(-full, full) / full * vs;
             let i = f64::from(s.current_a);
@@ -247,11 +266,12 @@ pub fn energy_per_cycle(
             e.mechanical_j += kt * i * dg;
             e.limited |=
                 s.flags.torque_limited || s.flags.current_limited || s.flags.duty_saturated;
+            e.peak_stress_pa = e.peak_stress_pa.max(f64::from(s.beam_stress_pa).abs());
         }
         last_gear = s.gear_angle_rad;
     })
     .map_err(err("controller"))?;
-    let n = f64::from(m.cycles);
+    let n = f64::from(window) * m.frequency_hz / 1000.0;
     e.electrical_j /= n;
     e.electrical_exact_j /= n;
     e.drawn_j /= n;
@@ -279,15 +299,15 @@ pub fn energy_per_cycle_figure(d: &Design) -> Result<(Figure, Csv), String> {
         }
     }
     let mut csv = Csv::new(header);
-    let j_link = f(Config::paper(Length::from_int(1)).link_inertia.get()) * 1e-6;
+    let j_link = to_f64(Config::paper(Length::from_int(1)).link_inertia.get()) * 1e-6;
     let mut sim: Vec<Vec<(f64, f64)>> = vec![Vec::new(); SERIES.len()];
     let mut est: Vec<Vec<(f64, f64)>> = vec![Vec::new(); SERIES.len()];
     for len in lengths() {
-        let x = f(len.get());
+        let x = to_f64(len.get());
         let k = d.stiffness(len).map_err(err("k"))?.get().to_num::<f64>();
         let mut row = vec![c(x), c(k), c((k / j_link).sqrt() / std::f64::consts::TAU)];
         for (i, m) in SERIES.iter().enumerate() {
-            let run = energy_per_cycle(d, len, m)?;
+            let run = energy_per_cycle(d, &Config::paper(len), m)?;
             let rigid = harness::plant_config(d, &Config::paper(len), m.load_nm as f32)
                 .ok()
                 .map(|pc| rigid_estimate(&pc, m));

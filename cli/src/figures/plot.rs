@@ -81,7 +81,8 @@ pub struct Panel {
     pub legend: SeriesLabelPosition,
 }
 
-/// A titled figure of panels side by side.
+/// A titled figure of panels side by side. Every figure spells its panels out in full
+/// (options, legend place, size): the literals look alike but each is that figure's layout.
 pub struct Figure {
     /// Title above all panels.
     pub title: String,

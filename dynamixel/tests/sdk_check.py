@@ -1,0 +1,230 @@
+#!/usr/bin/env python3
+"""Check the emulated bus (examples/pty_bus.rs, IDs 1-3) with ROBOTIS' dynamixel-sdk.
+
+    python3 -m venv /tmp/dxl-venv && /tmp/dxl-venv/bin/pip install dynamixel-sdk pyserial
+    /tmp/dxl-venv/bin/python dynamixel/tests/sdk_check.py /tmp/vsa-dxl-bus [--latency-ms 16]
+
+Protocol 1.0 (AX-12A), then a switch to 2.0 by a broadcast write of Protocol Type, the
+2.0 checks (X-series table, GroupSyncRead), a switch back and the Lock check. The expected
+values are the ROBOTIS e-Manual's (AX-12A and XL430-W250 pages), written here by hand, not
+read from the Rust tables. Prints one line per check and exits 1 if any failed.
+"""
+
+import sys
+import time
+
+import dynamixel_sdk.port_handler
+from dynamixel_sdk import (COMM_RX_TIMEOUT, COMM_SUCCESS, GroupSyncRead, GroupSyncWrite,
+                           PacketHandler, PortHandler)
+
+IDS = (1, 2, 3)
+BROADCAST = 0xFE
+READS = 1000
+
+# AX-12A defaults (e-Manual): address -> (size, value). Firmware version is ours (1).
+AX_DEFAULTS = {
+    0: (2, 12), 3: (1, None), 4: (1, 1), 5: (1, 250), 6: (2, 0), 8: (2, 1023), 11: (1, 70),
+    12: (1, 60), 13: (1, 140), 14: (2, 1023), 16: (1, 2), 17: (1, 36), 18: (1, 36),
+    24: (1, 0), 25: (1, 0), 26: (1, 1), 27: (1, 1), 28: (1, 32), 29: (1, 32), 44: (1, 0),
+    46: (1, 0), 47: (1, 0), 48: (2, 32),
+}
+# X-series subset (XL430-W250 addresses; model 1060).
+X_DEFAULTS = {
+    0: (2, 1060), 7: (1, None), 8: (1, 1), 9: (1, 250), 11: (1, 3), 48: (4, 4095),
+    52: (4, 0), 64: (1, 0), 65: (1, 0), 68: (1, 2), 69: (1, 0), 70: (1, 0),
+}
+# Extra registers, offsets from 50 (1.0) / 1024 (2.0).
+CLUTCH, PROTOCOL_TYPE = 0, 13
+
+failures = 0
+
+
+def check(ok, what):
+    global failures
+    print(("ok   " if ok else "FAIL ") + what, flush=True)
+    if not ok:
+        failures += 1
+
+
+def word(data, at, size):
+    return int.from_bytes(bytes(data[at:at + size]), "little")
+
+
+def raw_status(port, ph, packet, wait_len):
+    """Send raw bytes (a corrupted packet) and read one status with the SDK's receiver."""
+    port.clearPort()
+    port.writePort(bytes(packet))
+    port.setPacketTimeout(wait_len)
+    if ph.getProtocolVersion() == 1.0:
+        rx, result = ph.rxPacket(port)
+        return result, (rx[4] if result == COMM_SUCCESS else None)
+    rx, result = ph.rxPacket(port, False)
+    return result, (rx[8] if result == COMM_SUCCESS else None)
+
+
+def timed_reads(label, n, read_once):
+    """n reads; each returns (result, ok_data). A timeout (no status within the SDK's
+    packet timeout) is counted apart from a wrong or corrupt answer."""
+    timeouts = wrong = 0
+    t0 = time.perf_counter()
+    for _ in range(n):
+        result, ok = read_once()
+        if result == COMM_RX_TIMEOUT:
+            timeouts += 1
+        elif result != COMM_SUCCESS or not ok:
+            wrong += 1
+    dt = time.perf_counter() - t0
+    check(timeouts == 0 and wrong == 0,
+          f"{label}: {n} back-to-back, {timeouts} timeouts, {wrong} wrong, {1000 * dt / n:.3f} ms each")
+
+
+def protocol1(port):
+    ph = PacketHandler(1.0)
+    for i in IDS:
+        model, res, err = ph.ping(port, i)
+        check(res == COMM_SUCCESS and err == 0 and model == 12, f"1.0 ping {i}: model {model}")
+    for i in IDS:
+        data, res, err = ph.readTxRx(port, i, 0, 64)
+        ok = res == COMM_SUCCESS and err == 0 and len(data) == 64
+        bad = [a for a, (s, v) in AX_DEFAULTS.items()
+               if ok and word(data, a, s) != (i if a == 3 else v)]
+        check(ok and not bad, f"1.0 id {i}: every AX-12A default in one READ of 0-63 (mismatch at {bad})")
+        check(word(data, 50 + CLUTCH, 2) == 4000, f"1.0 id {i}: clutch length {word(data, 50, 2)} um")
+    # Torque on by broadcast (no status), then one SYNC_WRITE of three goals.
+    ph.write1ByteTxOnly(port, BROADCAST, 24, 1)
+    goals = {1: 100, 2: 512, 3: 1000}
+    sw = GroupSyncWrite(port, ph, 30, 2)
+    for i, g in goals.items():
+        sw.addParam(i, list(g.to_bytes(2, "little")))
+    check(sw.txPacket() == COMM_SUCCESS, "1.0 SYNC_WRITE of goal positions sent")
+    for i, g in goals.items():
+        pos, res, err = ph.read2ByteTxRx(port, i, 36)
+        check(res == COMM_SUCCESS and err == 0 and pos == g, f"1.0 id {i}: present position {pos} (goal {g})")
+    # Out-of-range goal: angle limit bit, goal unchanged.
+    res, err = ph.write2ByteTxRx(port, 1, 30, 1500)
+    check(res == COMM_SUCCESS and err & 0x02, f"1.0 goal 1500: error 0x{err:02x} has angle limit (0x02)")
+    ph.write2ByteTxRx(port, 1, 8, 800)  # CCW angle limit 800
+    res, err = ph.write2ByteTxRx(port, 1, 30, 900)
+    check(err & 0x02, f"1.0 goal 900 over CCW limit 800: error 0x{err:02x}")
+    ph.write2ByteTxRx(port, 1, 8, 1023)
+    goal, _, _ = ph.read2ByteTxRx(port, 1, 30)
+    check(goal == 100, f"1.0 refused goals left goal {goal}")
+    # Read-only write: range bit.
+    res, err = ph.write2ByteTxRx(port, 1, 36, 5)
+    check(res == COMM_SUCCESS and err & 0x08, f"1.0 write to Present Position: error 0x{err:02x} has range (0x08)")
+    res, err = ph.write2ByteTxRx(port, 1, 50 + CLUTCH, 9000)
+    check(err & 0x08, f"1.0 clutch length 9000 um: error 0x{err:02x} has range (0x08)")
+    # Bad checksum (WRITE LED=1 to ID 2, checksum inverted): checksum bit, LED unchanged.
+    body = [2, 4, 3, 25, 1]
+    packet = [0xFF, 0xFF] + body + [(~sum(body) & 0xFF) ^ 0xFF]
+    for attempt in (1, 2):
+        res, err = raw_status(port, ph, packet, 6)
+        check(res == COMM_SUCCESS and err is not None and err & 0x10,
+              f"1.0 bad checksum (try {attempt}): error 0x{err or 0:02x} has checksum (0x10)")
+    led, _, _ = ph.read1ByteTxRx(port, 2, 25)
+    check(led == 0, f"1.0 LED after two corrupted writes: {led}")
+    def read_id2():
+        pos, res, err = ph.read2ByteTxRx(port, 2, 36)
+        return res, err == 0 and pos == goals[2]
+    timed_reads("1.0 READ present position of id 2", READS, read_id2)
+    ph.write1ByteTxOnly(port, BROADCAST, 5, 0)  # return delay 0
+    timed_reads("1.0 READ at return delay 0", READS, read_id2)
+    ph.write1ByteTxOnly(port, BROADCAST, 5, 250)
+    # Switch every device to Protocol 2.0 (broadcast write of Protocol Type).
+    ph.write1ByteTxOnly(port, BROADCAST, 24, 0)
+    ph.write1ByteTxOnly(port, BROADCAST, 50 + PROTOCOL_TYPE, 2)
+    time.sleep(0.01)
+
+
+def protocol2(port):
+    ph = PacketHandler(2.0)
+    for i in IDS:
+        model, res, err = ph.ping(port, i)
+        check(res == COMM_SUCCESS and err == 0 and model == 1060, f"2.0 ping {i}: model {model}")
+    found, res = ph.broadcastPing(port)
+    check(res == COMM_SUCCESS and sorted(found) == list(IDS), f"2.0 broadcast ping: {sorted(found)}")
+    for i in IDS:
+        data, res, err = ph.readTxRx(port, i, 0, 71)
+        ok = res == COMM_SUCCESS and err == 0 and len(data) == 71
+        bad = [a for a, (s, v) in X_DEFAULTS.items() if ok and word(data, a, s) != (i if a == 7 else v)]
+        check(ok and not bad, f"2.0 id {i}: X-series defaults in one READ of 0-70 (mismatch at {bad})")
+    ph.write1ByteTxOnly(port, BROADCAST, 64, 1)
+    goals = {1: 1000, 2: 2048, 3: 3000}
+    sw = GroupSyncWrite(port, ph, 116, 4)
+    for i, g in goals.items():
+        sw.addParam(i, list(g.to_bytes(4, "little")))
+    check(sw.txPacket() == COMM_SUCCESS, "2.0 SYNC WRITE of goal positions sent")
+    sr = GroupSyncRead(port, ph, 132, 4)
+    for i in IDS:
+        sr.addParam(i)
+    res = sr.txRxPacket()
+    got = {i: sr.getData(i, 132, 4) for i in IDS}
+    check(res == COMM_SUCCESS and got == goals, f"2.0 SYNC READ of present positions: {got}")
+    res, err = ph.write4ByteTxRx(port, 1, 116, 5000)
+    check(res == COMM_SUCCESS and err & 0x7F == 6, f"2.0 goal 5000: error {err} = data limit (6)")
+    res, err = ph.write4ByteTxRx(port, 1, 132, 1)
+    check(res == COMM_SUCCESS and err & 0x7F == 7, f"2.0 write to Present Position: result {res}, error {err} = access (7)")
+    res, err = ph.write4ByteTxRx(port, 1, 48, 3000)
+    check(err & 0x7F == 7, f"2.0 EEPROM write with torque on: error {err} = access (7)")
+    res, err = ph.write2ByteTxRx(port, 1, 1024 + CLUTCH, 500)
+    check(err & 0x7F == 7, f"2.0 clutch length (EEPROM) with torque on: error {err} = access (7)")
+    # Bad CRC (WRITE LED=1 to ID 2): CRC error, LED unchanged.
+    good = [0xFF, 0xFF, 0xFD, 0x00, 2, 6, 0, 3, 65, 0, 1]
+    crc = ph.updateCRC(0, good, len(good))
+    packet = good + [(crc & 0xFF) ^ 0x5A, crc >> 8]
+    for attempt in (1, 2):
+        res, err = raw_status(port, ph, packet, 11)
+        check(res == COMM_SUCCESS and err is not None and err & 0x7F == 3,
+              f"2.0 bad CRC (try {attempt}): error {err} = CRC (3)")
+    led, _, _ = ph.read1ByteTxRx(port, 2, 65)
+    check(led == 0, f"2.0 LED after two corrupted writes: {led}")
+    def sync_read():
+        res = sr.txRxPacket()
+        return res, all(sr.getData(i, 132, 4) == g for i, g in goals.items())
+    timed_reads("2.0 SYNC READ of 3 devices", READS, sync_read)
+    ph.write1ByteTxOnly(port, BROADCAST, 9, 0)  # return delay 0
+    timed_reads("2.0 SYNC READ at return delay 0", READS, sync_read)
+    ph.write1ByteTxOnly(port, BROADCAST, 9, 250)
+    # Back to Protocol 1.0 (torque off first: EEPROM writes need it).
+    ph.write1ByteTxOnly(port, BROADCAST, 64, 0)
+    ph.write1ByteTxOnly(port, BROADCAST, 13, 1)
+    time.sleep(0.01)
+
+
+def lock_v1(port):
+    ph = PacketHandler(1.0)
+    model, res, _ = ph.ping(port, 3)
+    check(res == COMM_SUCCESS and model == 12, f"1.0 again after the switch back: model {model}")
+    res, err = ph.write1ByteTxRx(port, 3, 47, 1)
+    check(res == COMM_SUCCESS and err == 0, "1.0 Lock = 1 accepted")
+    res, err = ph.write1ByteTxRx(port, 3, 5, 10)
+    check(err & 0x08, f"1.0 EEPROM write while locked: error 0x{err:02x} has range (0x08)")
+    res, err = ph.write1ByteTxRx(port, 3, 47, 0)
+    check(err & 0x08, f"1.0 Lock = 0 while locked: error 0x{err:02x}")
+    delay, _, _ = ph.read1ByteTxRx(port, 3, 5)
+    check(delay == 250, f"1.0 return delay still {delay}")
+
+
+def main():
+    args = sys.argv[1:]
+    if "--latency-ms" in args:
+        # The SDK's allowance for a USB adapter's latency timer (16 ms; a packet times out
+        # after 2 × that + 2 ms). A loaded host can stall the pseudo-terminal longer.
+        i = args.index("--latency-ms")
+        dynamixel_sdk.port_handler.LATENCY_TIMER = float(args[i + 1])
+        del args[i:i + 2]
+    print(f"SDK packet timeout allowance: LATENCY_TIMER = {dynamixel_sdk.port_handler.LATENCY_TIMER} ms")
+    port = PortHandler(args[0] if args else "/tmp/vsa-dxl-bus")
+    if not port.openPort() or not port.setBaudRate(1000000):
+        print(f"cannot open {port.getPortName()}")
+        return 1
+    protocol1(port)
+    protocol2(port)
+    lock_v1(port)
+    port.closePort()
+    print("all SDK checks passed" if failures == 0 else f"{failures} SDK checks failed")
+    return 0 if failures == 0 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
