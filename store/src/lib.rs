@@ -59,7 +59,7 @@
 //! |---|---|---|---|
 //! | [`Config`] | 1 | clutch: length µm or stiffness mN·m/rad; link inertia kg·mm²; gains (10⁻³ of the controller's units) or automatic; [`protocol::Limits`] (torque margin ‰, current mA, motor torque µN·m, duty ‰, position window µrad); command timeout ms | [`CONFIG_MAX`] = 72 B |
 //! | [`Calibration`] | 1 | motor polarity, encoder and pot directions ±1; current offset ADC counts; pot offset counts; resistance mΩ; back-EMF µV·s/rad; gear friction µN·m; link inertia kg·mm²; stiffness mN·m/rad or unresolved; clutch length µm or unresolved; stiffness uncertainty ‰ | [`CALIBRATION_MAX`] = 45 B |
-//! | [`BusSettings`] | 1 | Dynamixel ID 0–253; baud bit/s; protocol 1 or 2; return delay × 2 µs; status return level 0–2; CW and CCW angle limits 0–1023 | [`BUS_MAX`] = 16 B |
+//! | [`BusSettings`] | 1 | Dynamixel ID; baud bit/s; protocol 1 or 2; return delay × 2 µs; status return level 0–2; CW and CCW angle limits (AX units, 0–1023); ranges and defaults from `dynamixel::table` | [`BUS_MAX`] = 16 B |
 //! | [`FaultEntry`] | 1 | number since the last factory reset; [`protocol::FaultRecord`] (code, value, uptime ms) | [`FAULT_MAX`] = 17 B |
 //!
 //! A record of another version goes through [`Record::migrate`]: none exists yet, so it is

@@ -5,6 +5,7 @@
 //! so the version byte is read first and picks the layout; a version this firmware has no
 //! layout for is rejected, never decoded as the current one.
 
+use dynamixel::{Field, Protocol};
 use protocol::{FaultRecord, Gains, Limits, Request, CLUTCH_MAX_UM, CLUTCH_MIN_UM};
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
 
@@ -114,8 +115,8 @@ pub struct Config {
     /// Clutch length or stiffness.
     pub clutch: Clutch,
     /// Link inertia about the output axis, kg·mm² (the controller's unit: 1000 =
-    /// 1e-3 kg·m²), in [`model::control::config::MIN_INERTIA`]..=
-    /// [`model::control::config::MAX_INERTIA`].
+    /// 1e-3 kg·m²), in [`model::control::MIN_INERTIA`]..=
+    /// [`model::control::MAX_INERTIA`].
     pub link_inertia_kg_mm2: u32,
     /// PID gains ([`Request::SetGains`]); `None` = the automatic schedule
     /// ([`Request::AutoGains`]).
@@ -143,7 +144,7 @@ impl Record for Config {
         if clutch.validate().is_err() {
             return Err("clutch length or stiffness out of range");
         }
-        let inertia = model::control::config::MIN_INERTIA..=model::control::config::MAX_INERTIA;
+        let inertia = model::control::MIN_INERTIA..=model::control::MAX_INERTIA;
         if !i32::try_from(self.link_inertia_kg_mm2).is_ok_and(|j| inertia.contains(&j)) {
             return Err("link inertia outside 1..=1000000 kg·mm²");
         }
@@ -193,9 +194,9 @@ pub struct Calibration {
 }
 
 /// Largest |current-sense offset|, ADC counts: half the 12-bit scale.
-pub const CURRENT_OFFSET_MAX: i16 = model::control::config::ADC_MID as i16;
+pub const CURRENT_OFFSET_MAX: i16 = model::sensors::ADC_MID as i16;
 /// Largest |pot offset|, pot counts: half the pot's 1024 counts.
-pub const POT_OFFSET_MAX: i16 = (model::control::config::POT_COUNTS / 2) as i16;
+pub const POT_OFFSET_MAX: i16 = (model::sensors::POT_COUNTS / 2) as i16;
 
 impl Record for Calibration {
     const NAME: &'static str = "calibration";
@@ -215,7 +216,7 @@ impl Record for Calibration {
         if self.resistance_mohm == 0 || self.back_emf_uv_s_per_rad == 0 {
             return Err("resistance or back-EMF constant 0");
         }
-        let inertia = model::control::config::MIN_INERTIA..=model::control::config::MAX_INERTIA;
+        let inertia = model::control::MIN_INERTIA..=model::control::MAX_INERTIA;
         if !i32::try_from(self.link_inertia_kg_mm2).is_ok_and(|j| inertia.contains(&j)) {
             return Err("link inertia outside 1..=1000000 kg·mm²");
         }
@@ -235,15 +236,16 @@ impl Record for Calibration {
     }
 }
 
-/// Identity and settings on a Dynamixel bus, as the AX-12A's EEPROM area keeps them
-/// (addresses 3–16 of its control table; the baud rate in bit/s rather than the register's
-/// protocol-dependent code).
+/// Identity and settings on a Dynamixel bus, as the EEPROM area of the control table keeps
+/// them (the baud rate in bit/s rather than the register's protocol-dependent code). Ranges
+/// and defaults are the control table's ([`dynamixel::table`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct BusSettings {
-    /// Bus ID, 0..=253 (254 is the broadcast ID).
+    /// Bus ID (AX table: 0..=253; X table: 0..=252).
     pub id: u8,
-    /// Baud rate, bit/s, in [`BAUD_MIN`]..=[`BAUD_MAX`].
+    /// Baud rate, bit/s: one the protocol's Baud Rate register can select
+    /// (2 000 000 / (v + 1) for protocol 1, [`dynamixel::table::X_BAUD_BPS`] for 2).
     pub baud_bps: u32,
     /// Dynamixel protocol version, 1 or 2.
     pub protocol_version: u8,
@@ -251,53 +253,97 @@ pub struct BusSettings {
     pub return_delay_2us: u8,
     /// Status return level, 0 (ping only), 1 (ping and read), 2 (all).
     pub status_return_level: u8,
-    /// Clockwise angle limit, position units (0..=1023 over 300°, 0.29° each).
+    /// Clockwise angle limit, AX position units (0..=1023 over 300°, 0.29° each).
     pub cw_angle_limit: u16,
-    /// Counter-clockwise angle limit, position units, ≥ the clockwise one (both 0: wheel
-    /// mode).
+    /// Counter-clockwise angle limit, AX position units, ≥ the clockwise one (both 0:
+    /// wheel mode).
     pub ccw_angle_limit: u16,
 }
 
-/// Lowest baud rate, bit/s (the Dynamixel SDK's list starts at 9600).
-pub const BAUD_MIN: u32 = 9_600;
-/// Highest baud rate, bit/s (the SDK's list ends at 4 000 000).
-pub const BAUD_MAX: u32 = 4_000_000;
-/// Largest angle limit, position units (1023 = 300°).
-pub const ANGLE_LIMIT_MAX: u16 = 1023;
+/// The register of `field` in `protocol`'s table, else in the AX table (the angle limits
+/// are kept in AX units whatever the protocol).
+fn register(protocol: Protocol, field: Field) -> Option<dynamixel::Register> {
+    protocol
+        .table()
+        .register(field)
+        .or_else(|| Protocol::V1.table().register(field))
+}
+
+fn within(protocol: Protocol, field: Field, value: i32) -> bool {
+    register(protocol, field).is_some_and(|r| (r.min..=r.max).contains(&value))
+}
 
 impl BusSettings {
-    /// The AX-12A's factory settings: ID 1, 1 Mbit/s (register 1), protocol 1.0, return
-    /// delay 250 (500 µs), status return level 2, angle limits 0 and 1023.
-    pub const AX12A_DEFAULT: BusSettings = BusSettings {
-        id: 1,
-        baud_bps: 1_000_000,
-        protocol_version: 1,
-        return_delay_2us: 250,
-        status_return_level: 2,
-        cw_angle_limit: 0,
-        ccw_angle_limit: ANGLE_LIMIT_MAX,
-    };
+    /// The AX-12A's factory settings (its control table's defaults: ID 1, 1 Mbit/s,
+    /// protocol 1.0, return delay 250 = 500 µs, status return level 2, angle limits 0 and
+    /// 1023).
+    #[must_use]
+    pub fn ax12a_default() -> BusSettings {
+        let default = |f| {
+            register(Protocol::V1, f)
+                .and_then(|r| r.default)
+                .unwrap_or(0)
+        };
+        let byte = |f| u8::try_from(default(f)).unwrap_or(0);
+        BusSettings {
+            id: byte(Field::Id),
+            baud_bps: dynamixel::table::ax_baud_bps(byte(Field::BaudRate)),
+            protocol_version: 1,
+            return_delay_2us: byte(Field::ReturnDelayTime),
+            status_return_level: byte(Field::StatusReturnLevel),
+            cw_angle_limit: u16::try_from(default(Field::CwAngleLimit)).unwrap_or(0),
+            ccw_angle_limit: u16::try_from(default(Field::CcwAngleLimit)).unwrap_or(0),
+        }
+    }
 }
 
 impl Record for BusSettings {
     const NAME: &'static str = "bus";
     const VERSION: u8 = 1;
 
-    /// Ranges of the control table. Whether the UART makes the baud rate is the device's.
+    /// The control table's ranges for the protocol. Whether the UART makes the baud rate
+    /// is the device's check.
     fn check(&self) -> Result<(), &'static str> {
-        if self.id > 253 {
-            return Err("bus ID above 253");
+        let protocol = Protocol::from_number(i32::from(self.protocol_version))
+            .ok_or("Dynamixel protocol not 1 or 2")?;
+        if !within(protocol, Field::Id, i32::from(self.id)) {
+            return Err("bus ID outside the control table's range");
         }
-        if !(BAUD_MIN..=BAUD_MAX).contains(&self.baud_bps) {
-            return Err("baud rate outside 9600..=4000000");
+        let baud_ok = match protocol {
+            Protocol::V1 => register(protocol, Field::BaudRate).is_some_and(|r| {
+                (r.min..=r.max).any(|v| {
+                    u8::try_from(v).is_ok_and(|v| dynamixel::table::ax_baud_bps(v) == self.baud_bps)
+                })
+            }),
+            Protocol::V2 => dynamixel::table::X_BAUD_BPS.contains(&self.baud_bps),
+        };
+        if !baud_ok {
+            return Err("baud rate not one the protocol's register selects");
         }
-        if !matches!(self.protocol_version, 1 | 2) {
-            return Err("Dynamixel protocol not 1 or 2");
+        if !within(
+            protocol,
+            Field::ReturnDelayTime,
+            i32::from(self.return_delay_2us),
+        ) {
+            return Err("return delay outside the control table's range");
         }
-        if self.status_return_level > 2 {
+        if !within(
+            protocol,
+            Field::StatusReturnLevel,
+            i32::from(self.status_return_level),
+        ) {
             return Err("status return level above 2");
         }
-        if self.ccw_angle_limit > ANGLE_LIMIT_MAX || self.cw_angle_limit > self.ccw_angle_limit {
+        if !within(
+            protocol,
+            Field::CwAngleLimit,
+            i32::from(self.cw_angle_limit),
+        ) || !within(
+            protocol,
+            Field::CcwAngleLimit,
+            i32::from(self.ccw_angle_limit),
+        ) || self.cw_angle_limit > self.ccw_angle_limit
+        {
             return Err("angle limits above 1023 or clockwise above counter-clockwise");
         }
         Ok(())

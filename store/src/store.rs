@@ -562,7 +562,7 @@ mod tests {
     }
 
     fn bus() -> BusSettings {
-        BusSettings::AX12A_DEFAULT
+        BusSettings::ax12a_default()
     }
 
     /// Writes a raw set item (as some other firmware might have) and loads it.
@@ -754,7 +754,7 @@ mod tests {
             s.save(&bad, &RangeChecks),
             Err(StoreError::Invalid {
                 record: "bus",
-                reason: "bus ID above 253"
+                reason: "bus ID outside the control table's range"
             })
         );
         assert_eq!(s.flash().words_written(), words, "nothing written");
@@ -768,6 +768,71 @@ mod tests {
         assert!(s.save(&timeout0, &RangeChecks).is_err());
         let (_, boot) = Store::open(s.into_flash(), &RangeChecks).unwrap();
         assert_eq!(boot.report.generation, Some(1));
+    }
+
+    #[test]
+    fn bus_settings_follow_the_control_tables() {
+        let ax = BusSettings::ax12a_default();
+        let want = BusSettings {
+            id: 1,
+            baud_bps: 1_000_000,
+            protocol_version: 1,
+            return_delay_2us: 250,
+            status_return_level: 2,
+            cw_angle_limit: 0,
+            ccw_angle_limit: 1023,
+        };
+        assert_eq!(ax, want);
+        let x = BusSettings {
+            protocol_version: 2,
+            ..ax
+        };
+        assert_eq!((ax.check(), x.check()), (Ok(()), Ok(())));
+        // 250 kbit/s is AX register 7, not an X rate; ID 253 is AX-only.
+        assert!(BusSettings {
+            baud_bps: 250_000,
+            ..ax
+        }
+        .check()
+        .is_ok());
+        assert!(BusSettings {
+            baud_bps: 250_000,
+            ..x
+        }
+        .check()
+        .is_err());
+        assert!(BusSettings {
+            baud_bps: 300_000,
+            ..ax
+        }
+        .check()
+        .is_err());
+        assert!(BusSettings { id: 253, ..ax }.check().is_ok());
+        assert!(BusSettings { id: 253, ..x }.check().is_err());
+        assert!(BusSettings {
+            return_delay_2us: 255,
+            ..ax
+        }
+        .check()
+        .is_err());
+        assert!(BusSettings {
+            protocol_version: 3,
+            ..ax
+        }
+        .check()
+        .is_err());
+        assert!(BusSettings {
+            status_return_level: 3,
+            ..ax
+        }
+        .check()
+        .is_err());
+        let crossed = BusSettings {
+            cw_angle_limit: 600,
+            ccw_angle_limit: 500,
+            ..ax
+        };
+        assert!(crossed.check().is_err());
     }
 
     #[test]

@@ -67,7 +67,7 @@ pub fn sample_set(n: u32) -> RecordSet {
         calibration: Some(sample_calibration()),
         bus: Some(BusSettings {
             id: (n % 254) as u8,
-            ..BusSettings::AX12A_DEFAULT
+            ..BusSettings::ax12a_default()
         }),
     }
 }
@@ -159,18 +159,21 @@ pub fn calibration() -> impl Strategy<Value = Calibration> {
         )
 }
 
-/// Valid bus settings over their whole ranges.
+/// Valid bus settings over their whole ranges (IDs valid in both tables).
 pub fn bus() -> impl Strategy<Value = BusSettings> {
+    let baud = prop_oneof![
+        (1u8..=254).prop_map(|v| (1u8, dynamixel::table::ax_baud_bps(v))),
+        proptest::sample::select(&dynamixel::table::X_BAUD_BPS[..]).prop_map(|b| (2u8, b)),
+    ];
     (
-        0u8..=253,
-        store::records::BAUD_MIN..=store::records::BAUD_MAX,
-        1u8..=2,
-        any::<u8>(),
+        0u8..=252,
+        baud,
+        0u8..=254,
         0u8..=2,
         0u16..=511,
         511u16..=1023,
     )
-        .prop_map(|(id, baud, proto, delay, level, cw, ccw)| BusSettings {
+        .prop_map(|(id, (proto, baud), delay, level, cw, ccw)| BusSettings {
             id,
             baud_bps: baud,
             protocol_version: proto,
