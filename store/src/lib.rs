@@ -87,6 +87,8 @@
 //! * **Reclaiming a page** (when the active page is full) copies its still-current items
 //!   forward, then erases it; sequential-storage resumes an interrupted reclaim at the next
 //!   operation.
+//! * Whatever the flash holds (random bytes, all zeros), the store opens with nothing
+//!   applied, and a factory reset (which erases what it cannot write over) recovers it.
 //! * The tests cut the power after every word write and in every erase of a save, of a
 //!   reclaiming save, of a factory reset and of a fault write, and
 //!   run random sequences of saves, cuts, resets and faults (`tests/power_fail.rs`); 1 000

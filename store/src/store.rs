@@ -399,8 +399,9 @@ impl<F: NorFlash> Store<F> {
     }
 
     /// Forgets every record and the fault log, atomically: one set item with no records
-    /// and a fault floor above every logged fault. If sequential-storage reports the flash
-    /// corrupted beyond repair, erases the whole region instead.
+    /// and a fault floor above every logged fault. If that cannot be written (flash
+    /// corrupted beyond repair, or holding something other than a store), erases the whole
+    /// region instead.
     ///
     /// # Errors
     /// [`StoreError::Flash`] if the flash failed.
@@ -412,7 +413,9 @@ impl<F: NorFlash> Store<F> {
                 self.generation = generation;
                 self.fault_floor = floor;
             }
-            Err(StoreError::Flash(FlashFault::Corrupted)) => {
+            // Flash the map cannot write (corrupted beyond repair, or words not erased where
+            // it expects free space): the user asked to forget everything, so erase it.
+            Err(StoreError::Flash(_)) => {
                 block_on(self.map.erase_all()).map_err(|e| StoreError::Flash(flash_fault(&e)))?;
                 self.generation = 0;
                 self.fault_floor = 0;

@@ -361,3 +361,39 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 32, ..ProptestConfig::default() })]
+
+    /// Whatever the flash holds (random bytes, all zeros), the store opens, loads without
+    /// applying anything it cannot decode and check, and a factory reset makes it usable.
+    #[test]
+    fn any_flash_contents_boot_and_a_factory_reset_recovers(
+        seed in any::<u64>(),
+        zeros in any::<bool>(),
+    ) {
+        let mut bytes = vec![0u8; Flash::SIZE];
+        if !zeros {
+            let mut x = seed | 1;
+            for b in &mut bytes {
+                x ^= x << 13;
+                x ^= x >> 7;
+                x ^= x << 17;
+                *b = x as u8;
+            }
+        }
+        let flash = Flash::from_bytes(&bytes).unwrap();
+        let (mut s, boot) = Store::open(flash, &RangeChecks).unwrap();
+        // Nothing in random bytes passes the items' CRCs: nothing is applied.
+        for (name, outcome) in boot.report.lines() {
+            prop_assert!(outcome != store::Outcome::Loaded, "{}", name);
+        }
+        prop_assert_eq!(boot.set, RecordSet::default());
+        s.factory_reset().unwrap();
+        let set = sample_set(5);
+        s.save(&set, &RangeChecks).unwrap();
+        let (_, boot) = reboot(s.flash());
+        assert_nothing_rejected(&boot);
+        prop_assert_eq!(boot.set, set);
+    }
+}
