@@ -6,7 +6,7 @@ use model::control::Config;
 use model::servo::{Servo, TickInput};
 use model::supervisor::SupervisorConfig;
 use model::{Design, Length};
-use plant::metrics::StepResponse;
+use plant::metrics::{move_command_tick, StepResponse};
 use plant::scenario::BridgeLines;
 use plant::served::ServedActuator;
 use plant::ENCODER_COUNT_RAD;
@@ -100,6 +100,17 @@ fn a_commanded_move_with_the_load_meets_the_controller_tolerances() {
         .find(|s| s.tick <= command_tick)
         .map(|s| f64::from(s.link_angle_urad))
         .expect("samples before the move");
+    // What xtask e2e does without access to the board's tick count: recover the command
+    // tick from the recorded reference.
+    let refs: Vec<(u32, i32)> = b
+        .samples
+        .iter()
+        .map(|s| (s.tick, s.reference_urad))
+        .collect();
+    assert_eq!(
+        move_command_tick(refs[0].1, 500_000, 300, &refs),
+        Some(command_tick)
+    );
     let mut step = StepResponse::new(start, target, 1.5 * count_urad, 0.4);
     for s in b.samples.iter().filter(|s| s.tick > command_tick) {
         let t_s = f64::from(s.tick - command_tick) * 1e-3;
