@@ -650,6 +650,8 @@ pub struct FloatSupervisor {
     position_min: f32,
     position_max: f32,
     timeout_ticks: u32,
+    overload_ticks: u16,
+    over_ticks: u16,
     latched: FaultSet,
     prev_encoder: Option<u16>,
     prev_pot: Option<u16>,
@@ -682,6 +684,8 @@ impl FloatSupervisor {
             position_min: i32f32(cfg.position_min.to_bits()),
             position_max: i32f32(cfg.position_max.to_bits()),
             timeout_ticks: cfg.command_timeout_ms,
+            overload_ticks: cfg.overload_ticks,
+            over_ticks: 0,
             latched: FaultSet(0),
             prev_encoder: None,
             prev_pot: None,
@@ -763,7 +767,12 @@ impl FloatSupervisor {
         }
         let tau = out.torque_estimate;
         if libm::fabsf(tau) > self.torque_cap {
-            note(self, FaultCode::BeamOverload, to_micro(tau));
+            self.over_ticks = self.over_ticks.saturating_add(1);
+            if self.over_ticks >= self.overload_ticks {
+                note(self, FaultCode::BeamOverload, to_micro(tau));
+            }
+        } else {
+            self.over_ticks = 0;
         }
         let theta = out.link_angle;
         if theta < self.position_min || theta > self.position_max {

@@ -1,5 +1,5 @@
 //! Closed-loop harness: the simulated actuator ([`Plant`]) driven by the fixed-point
-//! controller of the `model` crate ([`Controller`]), with the step-response and tracking
+//! servo of the `model` crate ([`Servo`]: controller and supervisor), with the step-response and tracking
 //! metrics computed on the fly (no_std, no allocation: samples are streamed to a
 //! caller-supplied closure).
 //!
@@ -7,19 +7,23 @@
 //! (`design.md` §2): stiffness k(L), free play φ_b, hysteresis coefficient (6/5)·μ·R/L and
 //! root stress per N·m; the motor and link from the controller's configuration, so the
 //! controller's model and the plant agree (the plant adds Coulomb friction, hysteresis and
-//! quantisation the controller does not model).
+//! quantisation the controller does not model) unless the scenario makes the actuator
+//! off-nominal ([`Scenario::plant`], [`crate::overrides`]).
 //!
 //! A run: hold for `settle_ticks` (so that a constant load is taken up by the coupling and
 //! the integrator), give the command, run `run_ticks` more. Metrics use the plant's *true*
 //! link angle and beam stress.
 
-use model::control::{Command, Config, ControlError, Controller, Flags, Measurements, Schedule};
+use model::control::{Command, Config, ControlError, Flags, Schedule};
+use model::servo::{BridgeDemand, Servo, ServoError, TickInput};
+use model::supervisor::{Fault, FaultSet, SupervisorConfig};
 use model::Design;
 
 use crate::config::{
     CouplingConfig, LinkConfig, LoadConfig, MotorConfig, PlantConfig, ProfileStep, TorqueProfile,
 };
-use crate::sim::Plant;
+use crate::overrides::Overrides;
+use crate::sim::{BridgeCommand, Plant};
 
 /// One encoder count, rad (2π/4096).
 pub const COUNT_RAD: f64 = core::f64::consts::TAU / 4096.0;
@@ -65,6 +69,12 @@ pub struct Scenario {
     /// the beams at rest, as after power-up under load) instead of in the middle of the
     /// free play, where applying the load at t = 0 would slam the link into the beams.
     pub preload: bool,
+    /// Changes of the simulated actuator from the nominal one the controller is
+    /// configured with (design.md §9); the controller does not see them.
+    pub plant: Overrides,
+    /// The supervisor's settings (the servo runs the controller under the supervisor; a
+    /// latched fault turns the bridge off).
+    pub supervision: SupervisorConfig,
 }
 
 impl Scenario {
@@ -85,6 +95,8 @@ impl Scenario {
             rms_from_ticks: 0,
             substeps: 0,
             preload: true,
+            plant: Overrides::NONE,
+            supervision: SupervisorConfig::DEFAULT,
         }
     }
 }
@@ -158,6 +170,10 @@ pub struct Metrics {
     pub output_hash: u64,
     /// Ticks simulated.
     pub ticks: u32,
+    /// Faults latched during the run (empty if none).
+    pub faults: FaultSet,
+    /// The first fault latched, if any.
+    pub first_fault: Option<Fault>,
 }
 
 /// FNV-1a 64 offset basis.
@@ -428,12 +444,15 @@ impl Recorder {
     }
 }
 
-/// The plant for `sc`: its configuration with the load step, preloaded by a constant load.
+/// The plant for `sc`: its configuration with the overrides and the load step, preloaded
+/// by a constant load.
 ///
 /// # Errors
 /// As [`plant_config`].
 pub fn plant_for(sc: &Scenario) -> Result<Plant, ControlError> {
-    let mut pc = plant_config(&sc.design, &sc.config, sc.load_nm)?;
+    let mut pc = sc
+        .plant
+        .apply(&plant_config(&sc.design, &sc.config, sc.load_nm)?);
     pc.substeps = sc.substeps;
     if let Some(d) = sc.disturbance {
         let at = i64::from(sc.settle_ticks) + i64::from(d.after_command_ticks);
@@ -462,13 +481,19 @@ pub fn allowable_stress_pa(design: &Design) -> f64 {
     fx32(design.params().allowable_stress.to_bits()) * 1e6
 }
 
-/// Runs `sc`, calling `on_sample` once per tick, and returns the metrics.
+/// What the H-bridge does when the servo turns the motor off (disabled or faulted).
+pub const OFF_BRIDGE: BridgeCommand = BridgeCommand::Coast;
+
+/// Runs `sc` — the servo (controller under the supervisor, enabled from the first tick)
+/// against the simulated actuator — calling `on_sample` once per tick, and returns the
+/// metrics. After a fault the bridge is off ([`OFF_BRIDGE`]) and the run goes on.
 ///
 /// # Errors
 /// The controller rejected the configuration or the command.
-pub fn run<F: FnMut(&Sample)>(sc: &Scenario, mut on_sample: F) -> Result<Metrics, ControlError> {
-    let mut plant = plant_for(sc)?;
-    let mut ctl = Controller::new(&sc.design, &sc.config)?;
+pub fn run<F: FnMut(&Sample)>(sc: &Scenario, mut on_sample: F) -> Result<Metrics, ServoError> {
+    let mut plant = plant_for(sc).map_err(ServoError::Control)?;
+    let mut servo = Servo::new(&sc.design, &sc.config, &sc.supervision)?;
+    servo.enable()?;
     let mut readings = plant.readings();
     let mut rec = Recorder::new(
         sc.settle_ticks,
@@ -480,28 +505,30 @@ pub fn run<F: FnMut(&Sample)>(sc: &Scenario, mut on_sample: F) -> Result<Metrics
     );
     for tick in 0..rec.total_ticks() {
         if tick == sc.settle_ticks {
-            ctl.command(sc.command)?;
+            servo.command(sc.command)?;
         }
-        let meas = Measurements {
+        let out = servo.tick(&TickInput {
             link_encoder: readings.link_encoder,
-            gear_pot: if sc.use_pot {
-                Some(readings.gear_pot)
-            } else {
-                None
-            },
+            gear_pot: sc.use_pot.then_some(readings.gear_pot),
             current_adc: readings.current_adc,
-            applied_duty: None,
-        };
-        let out = ctl.step(&meas);
+            read_error: None,
+        });
         if tick == sc.settle_ticks {
             rec.on_command(
                 plant.state().link_angle_rad,
-                fx32(ctl.trajectory().target().to_bits()),
+                fx32(servo.controller().trajectory().target().to_bits()),
             );
         }
-        readings = plant.step_tick(out.duty);
-        let sample = rec.record(tick, &out, out.duty, &readings, &plant.state());
+        let (cmd, duty) = match out.bridge {
+            BridgeDemand::Drive(d) => (BridgeCommand::Drive(d), d),
+            BridgeDemand::Off => (OFF_BRIDGE, 0),
+        };
+        readings = plant.step_tick_cmd(cmd);
+        let sample = rec.record(tick, &out.control, duty, &readings, &plant.state());
         on_sample(&sample);
     }
-    Ok(rec.finish())
+    let mut m = rec.finish();
+    m.faults = servo.faults();
+    m.first_fault = servo.supervisor().first_fault();
+    Ok(m)
 }

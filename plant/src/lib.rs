@@ -46,6 +46,7 @@
 mod config;
 mod coupling;
 pub mod harness;
+pub mod overrides;
 pub mod scenario;
 mod sensors;
 pub mod served;
