@@ -181,7 +181,7 @@ impl Case {
     pub fn scenario(&self) -> Scenario {
         let mut cfg = Config::paper(Length::from_int(3));
         cfg.clutch = ClutchSetting::Length(
-            Length::from_micro(self.clutch_um).unwrap_or(Length::from_int(3)),
+            Length::from_micro(self.clutch_um * 1000).unwrap_or(Length::from_int(3)),
         );
         cfg.link_inertia = Inertia::from_micro((self.link_inertia * 1e12).round() as i64)
             .unwrap_or(cfg.link_inertia);
@@ -324,7 +324,7 @@ impl Outcome {
 
     /// Each metric: (name, value, limit, met).
     #[must_use]
-    pub fn figures(&self) -> [(&'static str, f64, f64, bool); 8] {
+    pub fn figures(&self) -> [(&'static str, f64, f64, bool); 9] {
         let m = &self.metrics;
         let settle_ratio = self.settle_s() / self.settle_limit_s;
         let faults = f64::from(m.faults.0.count_ones());
@@ -361,6 +361,12 @@ impl Outcome {
                 m.peak_stress_ratio <= STRESS_MAX_RATIO,
             ),
             ("faults latched", faults, 0.0, m.faults.is_empty()),
+            (
+                "stress after a trip / σ_allow",
+                m.peak_stress_after_fault_pa / m.allowable_stress_pa,
+                STRESS_MAX_RATIO,
+                m.peak_stress_after_fault_pa <= STRESS_MAX_RATIO * m.allowable_stress_pa,
+            ),
             (
                 "raw-step settling / T_opt",
                 if matches!(self.case.motion, Motion::Step(_)) {

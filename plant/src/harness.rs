@@ -174,6 +174,9 @@ pub struct Metrics {
     pub faults: FaultSet,
     /// The first fault latched, if any.
     pub first_fault: Option<Fault>,
+    /// Largest |beam stress| from the tick after the first fault on (the fault
+    /// reaction's figure), Pa; 0 without a fault.
+    pub peak_stress_after_fault_pa: f64,
 }
 
 /// FNV-1a 64 offset basis.
@@ -503,9 +506,15 @@ pub fn run<F: FnMut(&Sample)>(sc: &Scenario, mut on_sample: F) -> Result<Metrics
         allowable_stress_pa(&sc.design),
         readings.link_encoder,
     );
+    let mut after_fault = 0.0f64;
     for tick in 0..rec.total_ticks() {
         if tick == sc.settle_ticks {
-            servo.command(sc.command)?;
+            // A fault latched during the hold refuses the command; the run goes on (its
+            // metrics show the fault).
+            match servo.command(sc.command) {
+                Ok(()) | Err(ServoError::Faulted) => {}
+                Err(e) => return Err(e),
+            }
         }
         let out = servo.tick(&TickInput {
             link_encoder: readings.link_encoder,
@@ -524,10 +533,15 @@ pub fn run<F: FnMut(&Sample)>(sc: &Scenario, mut on_sample: F) -> Result<Metrics
             BridgeDemand::Off => (OFF_BRIDGE, 0),
         };
         readings = plant.step_tick_cmd(cmd);
-        let sample = rec.record(tick, &out.control, duty, &readings, &plant.state());
+        let st = plant.state();
+        if !servo.faults().is_empty() {
+            after_fault = after_fault.max(f64::from(st.beam_stress_pa).abs());
+        }
+        let sample = rec.record(tick, &out.control, duty, &readings, &st);
         on_sample(&sample);
     }
     let mut m = rec.finish();
+    m.peak_stress_after_fault_pa = after_fault;
     m.faults = servo.faults();
     m.first_fault = servo.supervisor().first_fault();
     Ok(m)
