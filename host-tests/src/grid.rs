@@ -324,10 +324,12 @@ impl Outcome {
 
     /// Each metric: (name, value, limit, met).
     #[must_use]
-    pub fn figures(&self) -> [(&'static str, f64, f64, bool); 9] {
+    pub fn figures(&self) -> [(&'static str, f64, f64, bool); 10] {
         let m = &self.metrics;
         let settle_ratio = self.settle_s() / self.settle_limit_s;
         let faults = f64::from(m.faults.0.count_ones());
+        let false_trip =
+            !m.faults.is_empty() && m.peak_stress_before_fault_pa <= m.allowable_stress_pa;
         [
             (
                 "overshoot %",
@@ -361,6 +363,12 @@ impl Outcome {
                 m.peak_stress_ratio <= STRESS_MAX_RATIO,
             ),
             ("faults latched", faults, 0.0, m.faults.is_empty()),
+            (
+                "false trips (stress < σ_allow)",
+                f64::from(u8::from(false_trip)),
+                0.0,
+                !false_trip,
+            ),
             (
                 "stress after a trip / σ_allow",
                 m.peak_stress_after_fault_pa / m.allowable_stress_pa,

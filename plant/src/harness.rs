@@ -177,6 +177,10 @@ pub struct Metrics {
     /// Largest |beam stress| from the tick after the first fault on (the fault
     /// reaction's figure), Pa; 0 without a fault.
     pub peak_stress_after_fault_pa: f64,
+    /// Largest |beam stress| up to and including the tick of the first fault (the whole
+    /// run without one), Pa: a fault latched with this below σ_allow is a false trip
+    /// unless a sensor really failed.
+    pub peak_stress_before_fault_pa: f64,
 }
 
 /// FNV-1a 64 offset basis.
@@ -506,7 +510,7 @@ pub fn run<F: FnMut(&Sample)>(sc: &Scenario, mut on_sample: F) -> Result<Metrics
         allowable_stress_pa(&sc.design),
         readings.link_encoder,
     );
-    let mut after_fault = 0.0f64;
+    let (mut after_fault, mut before_fault) = (0.0f64, 0.0f64);
     for tick in 0..rec.total_ticks() {
         if tick == sc.settle_ticks {
             // A fault latched during the hold refuses the command; the run goes on (its
@@ -534,14 +538,18 @@ pub fn run<F: FnMut(&Sample)>(sc: &Scenario, mut on_sample: F) -> Result<Metrics
         };
         readings = plant.step_tick_cmd(cmd);
         let st = plant.state();
-        if !servo.faults().is_empty() {
-            after_fault = after_fault.max(f64::from(st.beam_stress_pa).abs());
+        let stress = f64::from(st.beam_stress_pa).abs();
+        if out.new_fault.is_none() && !servo.faults().is_empty() {
+            after_fault = after_fault.max(stress);
+        } else if servo.faults().is_empty() || out.new_fault.is_some() {
+            before_fault = before_fault.max(stress);
         }
         let sample = rec.record(tick, &out.control, duty, &readings, &st);
         on_sample(&sample);
     }
     let mut m = rec.finish();
     m.peak_stress_after_fault_pa = after_fault;
+    m.peak_stress_before_fault_pa = before_fault;
     m.faults = servo.faults();
     m.first_fault = servo.supervisor().first_fault();
     Ok(m)
