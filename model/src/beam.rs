@@ -13,7 +13,7 @@
 
 use crate::design::{k_eb, k_timo, Design};
 use crate::error::{Error, Result};
-use crate::fixmath::{icbrt_round, Scale};
+use crate::fixmath::{icbrt_round, SoftFloat};
 use crate::units::{Angle, Force, Frequency, Inertia, Length, Stiffness, Stress, Torque};
 
 /// Which beam theory gives the stiffness.
@@ -27,12 +27,13 @@ pub enum BeamModel {
     Timoshenko,
 }
 
-pub(crate) fn ov<T>(v: Option<T>) -> Result<T> {
+/// `v`, or [`Error::Overflow`] if the result left its format.
+pub(crate) fn or_overflow<T>(v: Option<T>) -> Result<T> {
     v.ok_or(Error::Overflow)
 }
 
-pub(crate) fn torque_from(s: Scale, negative: bool) -> Result<Torque> {
-    Ok(Torque::from_bits(ov(s.to_i64(32, negative))?))
+pub(crate) fn torque_from(s: SoftFloat, negative: bool) -> Result<Torque> {
+    Ok(Torque::from_bits(or_overflow(s.to_i64(32, negative))?))
 }
 
 /// How far above l (in I32F32 bits: 2⁻²⁰ of l, ≈ 1 ppm) an inverse may land and still be
@@ -67,17 +68,17 @@ impl BeamModel {
 }
 
 impl Design {
-    /// L as a `Scale`, checked against (0, l].
-    pub(crate) fn clutch(&self, len: Length) -> Result<Scale> {
+    /// L as a `SoftFloat`, checked against (0, l].
+    pub(crate) fn clutch(&self, len: Length) -> Result<SoftFloat> {
         let b = len.to_bits();
         if b <= 0 || b > self.params().beam_length.to_bits() {
             return Err(Error::ClutchLengthOutOfRange);
         }
-        Ok(Scale::from_bits(b, 32).0)
+        Ok(SoftFloat::from_bits(b, 32).0)
     }
 
-    pub(crate) fn k_scale(&self, model: BeamModel, len: Scale) -> Result<Scale> {
-        ov(match model {
+    pub(crate) fn k_scale(&self, model: BeamModel, len: SoftFloat) -> Result<SoftFloat> {
+        or_overflow(match model {
             BeamModel::EulerBernoulli => k_eb(self.c_k, len),
             BeamModel::Timoshenko => k_timo(self.c_k, self.shear, len),
         })
@@ -90,7 +91,7 @@ impl Design {
     pub fn stiffness(&self, len: Length) -> Result<Stiffness> {
         let l = self.clutch(len)?;
         let k = self.k_scale(BeamModel::EulerBernoulli, l)?;
-        Ok(Stiffness::from_bits(ov(k.to_i128(64, false))?))
+        Ok(Stiffness::from_bits(or_overflow(k.to_i128(64, false))?))
     }
 
     /// Shear-corrected joint stiffness k_T = n·R²/(L³/(3EI) + L/(κGA)) (Timoshenko, design.md
@@ -101,16 +102,16 @@ impl Design {
     pub fn stiffness_timoshenko(&self, len: Length) -> Result<Stiffness> {
         let l = self.clutch(len)?;
         let k = self.k_scale(BeamModel::Timoshenko, l)?;
-        Ok(Stiffness::from_bits(ov(k.to_i128(64, false))?))
+        Ok(Stiffness::from_bits(or_overflow(k.to_i128(64, false))?))
     }
 
     /// `q = C/k` (= L³ for E–B, L³ + s·L for Timoshenko) in mm³.
-    fn cube_for(&self, k: Stiffness) -> Result<Scale> {
+    fn cube_for(&self, k: Stiffness) -> Result<SoftFloat> {
         if k.to_bits() <= 0 {
             return Err(Error::StiffnessNotPositive);
         }
         // An exponent overflow here means q is astronomically large: L far beyond l.
-        self.c_k.div(k.scale()).ok_or(Error::StiffnessTooLow)
+        self.c_k.div(k.magnitude()).ok_or(Error::StiffnessTooLow)
     }
 
     /// Final checks of a clutch length in I32F32 bits: 0 → too stiff, within 1 ppm above l →
@@ -156,9 +157,10 @@ impl Design {
         let q = self.cube_for(k)?;
         let lb = self.params().beam_length.to_bits() as u128;
         // g(L) = L·(L² + s), L = bits·2^-frac.
-        let g = |bits: u128, frac: i64| -> Result<Scale> {
-            let len = ov(Scale::from_u128(bits, -frac))?;
-            ov(ov(ov(len.mul(len))?.add(self.shear))?.mul(len))
+        let g = |bits: u128, frac: i64| -> Result<SoftFloat> {
+            let len = or_overflow(SoftFloat::from_u128(bits, -frac))?;
+            let len2 = or_overflow(len.mul(len))?;
+            or_overflow(or_overflow(len2.add(self.shear))?.mul(len))
         };
         let mut lo: u128 = 0;
         let mut hi = lb + clamp_tolerance(lb);
@@ -186,9 +188,12 @@ impl Design {
     /// [`Error::ClutchLengthOutOfRange`], [`Error::Overflow`] if |θ| ≥ 2³¹ rad.
     pub fn deflection(&self, torque: Torque, len: Length) -> Result<Angle> {
         let l = self.clutch(len)?;
-        let l3 = ov(ov(l.mul(l))?.mul(l))?;
-        let per_torque = ov(l3.mul(self.inv_c_k))?;
-        Ok(Angle::from_bits(ov(per_torque.mul_i64(torque.to_bits()))?))
+        let l2 = or_overflow(l.mul(l))?;
+        let l3 = or_overflow(l2.mul(l))?;
+        let per_torque = or_overflow(l3.mul(self.inv_c_k))?;
+        Ok(Angle::from_bits(or_overflow(
+            per_torque.mul_i64(torque.to_bits()),
+        )?))
     }
 
     /// Load on each beam, P = τ/(n·R) (τ shared by n beams at radius R), via a
@@ -197,9 +202,9 @@ impl Design {
     /// # Errors
     /// [`Error::Overflow`] if |P| ≥ 2³¹ N.
     pub fn beam_force(&self, torque: Torque) -> Result<Force> {
-        Ok(Force::from_bits(ov(self
-            .force_per_torque
-            .mul_i64(torque.to_bits()))?))
+        Ok(Force::from_bits(or_overflow(
+            self.force_per_torque.mul_i64(torque.to_bits()),
+        )?))
     }
 
     /// Bending stress at the beam root, σ = P·L·r/I with P = τ/(n·R), signed like τ.
@@ -208,8 +213,10 @@ impl Design {
     /// [`Error::ClutchLengthOutOfRange`], [`Error::Overflow`] if |σ| ≥ 2³¹ MPa.
     pub fn root_stress(&self, torque: Torque, len: Length) -> Result<Stress> {
         let l = self.clutch(len)?;
-        let per_torque = ov(self.stress_coef.mul(l))?;
-        Ok(Stress::from_bits(ov(per_torque.mul_i64(torque.to_bits()))?))
+        let per_torque = or_overflow(self.stress_coef.mul(l))?;
+        Ok(Stress::from_bits(or_overflow(
+            per_torque.mul_i64(torque.to_bits()),
+        )?))
     }
 
     /// Stress-limited torque capacity τ_cap(L) = n·R·σ_allow·I/(r·L): the torque at which
@@ -219,7 +226,7 @@ impl Design {
     /// [`Error::ClutchLengthOutOfRange`], [`Error::Overflow`] if τ_cap ≥ 2³¹ N·m.
     pub fn torque_capacity(&self, len: Length) -> Result<Torque> {
         let l = self.clutch(len)?;
-        torque_from(ov(self.cap_coef.div(l))?, false)
+        torque_from(or_overflow(self.cap_coef.div(l))?, false)
     }
 
     /// Deflection at the stress limit, θ_cap = τ_cap/k = σ_allow·L²/(3·E·r·R) (E–B).
@@ -228,8 +235,8 @@ impl Design {
     /// [`Error::ClutchLengthOutOfRange`], [`Error::Overflow`] if θ_cap ≥ 2³¹ rad.
     pub fn deflection_capacity(&self, len: Length) -> Result<Angle> {
         let l = self.clutch(len)?;
-        let v = ov(self.theta_cap_coef.mul(ov(l.mul(l))?))?;
-        Ok(Angle::from_bits(ov(v.to_i64(32, false))?))
+        let v = or_overflow(self.theta_cap_coef.mul(or_overflow(l.mul(l))?))?;
+        Ok(Angle::from_bits(or_overflow(v.to_i64(32, false))?))
     }
 
     /// Deflection at the stress limit with the Timoshenko stiffness,
@@ -239,8 +246,9 @@ impl Design {
     /// As [`Design::deflection_capacity`].
     pub fn deflection_capacity_timoshenko(&self, len: Length) -> Result<Angle> {
         let l = self.clutch(len)?;
-        let v = ov(self.theta_cap_coef.mul(ov(ov(l.mul(l))?.add(self.shear))?))?;
-        Ok(Angle::from_bits(ov(v.to_i64(32, false))?))
+        let l2_plus_s = or_overflow(or_overflow(l.mul(l))?.add(self.shear))?;
+        let v = or_overflow(self.theta_cap_coef.mul(l2_plus_s))?;
+        Ok(Angle::from_bits(or_overflow(v.to_i64(32, false))?))
     }
 
     /// Stiffness at both ends of the adjustable range, `(k(l), k(t_c))`: the softest and
@@ -266,20 +274,20 @@ pub struct Setting {
     pub(crate) model: BeamModel,
     pub(crate) stiffness: Stiffness,
     /// k (N·m/rad).
-    pub(crate) k: Scale,
+    pub(crate) k: SoftFloat,
     /// 1/k (rad per N·m).
-    pub(crate) inv_k: Scale,
+    pub(crate) inv_k: SoftFloat,
     /// 10³/(n·R) (N per N·m).
-    pub(crate) force_per_torque: Scale,
+    pub(crate) force_per_torque: SoftFloat,
     /// 10³·L·r/(n·R·I) (MPa per N·m).
-    pub(crate) stress_per_torque: Scale,
+    pub(crate) stress_per_torque: SoftFloat,
     pub(crate) torque_capacity: Torque,
     pub(crate) deflection_capacity: Angle,
     /// φ_b (rad).
-    pub(crate) free_play: Scale,
+    pub(crate) free_play: SoftFloat,
     pub(crate) free_play_angle: Angle,
     /// a = (6/5)·μ·R/L (1/rad).
-    pub(crate) friction: Scale,
+    pub(crate) friction: SoftFloat,
     pub(crate) tilt_backlash: Option<Angle>,
 }
 
@@ -292,7 +300,7 @@ impl Setting {
     pub fn new(design: &Design, len: Length, model: BeamModel) -> Result<Setting> {
         let l = design.clutch(len)?;
         let k = design.k_scale(model, l)?;
-        let stiffness = Stiffness::from_bits(ov(k.to_i128(64, false))?);
+        let stiffness = Stiffness::from_bits(or_overflow(k.to_i128(64, false))?);
         let deflection_capacity = match model {
             BeamModel::EulerBernoulli => design.deflection_capacity(len)?,
             BeamModel::Timoshenko => design.deflection_capacity_timoshenko(len)?,
@@ -302,14 +310,14 @@ impl Setting {
             model,
             stiffness,
             k,
-            inv_k: ov(k.recip())?,
+            inv_k: or_overflow(k.recip())?,
             force_per_torque: design.force_per_torque,
-            stress_per_torque: ov(design.stress_coef.mul(l))?,
+            stress_per_torque: or_overflow(design.stress_coef.mul(l))?,
             torque_capacity: design.torque_capacity(len)?,
             deflection_capacity,
             free_play: design.free_play_s,
             free_play_angle: design.free_play(),
-            friction: ov(design.friction_coef.div(l))?,
+            friction: or_overflow(design.friction_coef.div(l))?,
             tilt_backlash: design.tilt_backlash(len).ok(),
         })
     }

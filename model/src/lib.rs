@@ -13,6 +13,8 @@
 //! * [`hysteresis`]: friction hysteresis branches and their state machine (§2.1);
 //! * [`dynamics`]: natural frequency and the stiffness/clutch setting for a wanted one;
 //! * [`fixmath`]: integer square and cube roots;
+//! * [`sensors`]: the sensors' resolutions, their count-to-radian constants and the
+//!   encoder wrap;
 //! * [`control`]: the 1 kHz link-position controller, its trajectories and gain schedule;
 //! * [`supervisor`]: the latched fault checks (design.md §7); [`servo`]: the controller
 //!   under the supervisor with the enable state machine, the firmware's per-tick decision;
@@ -46,6 +48,7 @@ pub mod dynamics;
 pub mod error;
 pub mod fixmath;
 pub mod hysteresis;
+pub mod sensors;
 pub mod servo;
 pub mod supervisor;
 pub mod units;
