@@ -32,6 +32,7 @@
 
 use core::f32::consts::PI;
 
+use model::control::schedule::{CURRENT_OFFSET_TOLERANCE_COUNTS, RESISTANCE_TOLERANCE};
 use model::control::{encoder_delta, Command, Config, Schedule};
 use model::servo::{BridgeDemand, TickInput};
 use model::supervisor::{Fault, FaultCode, FaultSet, Supervisor};
@@ -114,6 +115,7 @@ pub struct FloatSchedule {
     brake_min_w: f32,
     int_band: f32,
     w_deadband: f32,
+    w_bias_per_amp: f32,
     kd: f32,
     alpha: f32,
     ff_vel: f32,
@@ -176,7 +178,9 @@ impl FloatSchedule {
             two_a_brake: 0.5 * kt * i_lim * 2.0 / j,
             brake_min_w: 0.5,
             int_band: if kp > 0.0 { max_duty / kp } else { f32::MAX },
-            w_deadband: r * 3.0 / (ke * 2.0 * ADC_COUNTS_PER_A),
+            w_deadband: r * (3.0 + 2.0 * CURRENT_OFFSET_TOLERANCE_COUNTS as f32)
+                / (ke * 2.0 * ADC_COUNTS_PER_A),
+            w_bias_per_amp: i32f32(RESISTANCE_TOLERANCE.to_bits()) * r / ke,
             kd,
             alpha: DT / (tau_f + DT),
             ff_vel: dpv * (ke + r * bv / kt),
@@ -444,6 +448,7 @@ pub struct FloatController {
     w_fb: f32,
     w_ref: f32,
     w_gear_prev: f32,
+    i_filtered: f32,
     integ: f32,
     duty_prev: i16,
     defl_prev: f32,
@@ -466,6 +471,7 @@ impl FloatController {
             w_fb: 0.0,
             w_ref: 0.0,
             w_gear_prev: 0.0,
+            i_filtered: 0.0,
             integ: 0.0,
             duty_prev: 0,
             defl_prev: 0.0,
@@ -487,6 +493,7 @@ impl FloatController {
         self.w_fb = 0.0;
         self.w_ref = 0.0;
         self.w_gear_prev = 0.0;
+        self.i_filtered = 0.0;
         self.integ = 0.0;
         self.duty_prev = 0;
         self.defl_valid = false;
@@ -532,9 +539,10 @@ impl FloatController {
         self.w_fb += s.alpha * (w_gear - self.w_fb);
 
         // --- coupling torque estimate ---
-        let dw = w_gear - self.w_gear_prev;
-        self.w_gear_prev = w_gear;
-        let tau_i = s.kt * current - s.jg_fs * dw - s.bv * w_gear;
+        self.i_filtered += s.alpha * (current - self.i_filtered);
+        let dw = self.w_fb - self.w_gear_prev;
+        self.w_gear_prev = self.w_fb;
+        let tau_i = s.kt * self.i_filtered - s.jg_fs * dw - s.bv * w_gear;
         let tau = match m.gear_pot {
             Some(pot) if s.w_defl != 0.0 => {
                 let pot = i32::from(pot) & (POT_COUNTS - 1);
@@ -606,7 +614,7 @@ impl FloatController {
         // --- integrator ---
         let inc = if in_count {
             let slip = w_gear - r.velocity;
-            if libm::fabsf(slip) <= s.w_deadband {
+            if libm::fabsf(slip) <= s.w_deadband + s.w_bias_per_amp * libm::fabsf(current) {
                 0.0
             } else {
                 -s.kp_dt * slip

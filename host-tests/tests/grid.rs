@@ -28,7 +28,6 @@ const OPEN: &[&str] = &[
     "rest duty span ‰",
     "peak stress / σ_allow",
     "faults latched",
-    "false trips (stress < σ_allow)",
     "stress after a trip / σ_allow",
     "raw-step settling / T_opt",
 ];

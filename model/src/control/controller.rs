@@ -117,8 +117,10 @@ pub struct Controller {
     w_fb: i32,
     /// Filtered reference velocity, rad/s Q16.
     w_ref: i32,
-    /// Gear velocity estimate of the previous tick, rad/s Q16.
+    /// Filtered gear velocity of the previous tick (torque estimate), rad/s Q16.
     w_gear_prev: i32,
+    /// Motor current through the derivative filter (torque estimate), A Q16.
+    i_filtered: i32,
     /// Integrator, duty ‰ in Q32 (I32F32 bits).
     integ: i64,
     duty_prev: i16,
@@ -148,6 +150,7 @@ impl Controller {
             w_fb: 0,
             w_ref: 0,
             w_gear_prev: 0,
+            i_filtered: 0,
             integ: 0,
             duty_prev: 0,
             defl_prev: 0,
@@ -207,6 +210,7 @@ impl Controller {
         self.w_fb = 0;
         self.w_ref = 0;
         self.w_gear_prev = 0;
+        self.i_filtered = 0;
         self.integ = 0;
         self.duty_prev = 0;
         self.defl_valid = false;
@@ -252,11 +256,16 @@ impl Controller {
             .saturating_add(s.alpha.apply(w_gear.saturating_sub(self.w_fb)));
 
         // --- coupling torque estimate ---
-        // Current-based: motor torque minus the gear's inertial and viscous torque.
-        let dw = w_gear.saturating_sub(self.w_gear_prev);
-        self.w_gear_prev = w_gear;
+        // Current-based: motor torque minus the gear's inertial and viscous torque, both
+        // through the derivative filter F: an imperfect R or k_e makes the observer jump
+        // with every duty step, and J_g·Δω_g/dt of that jump is a torque no beam sees.
+        self.i_filtered = self
+            .i_filtered
+            .saturating_add(s.alpha.apply(current.saturating_sub(self.i_filtered)));
+        let dw = self.w_fb.saturating_sub(self.w_gear_prev);
+        self.w_gear_prev = self.w_fb;
         let tau_i =
-            s.kt.apply(current)
+            s.kt.apply(self.i_filtered)
                 .saturating_sub(s.gear_inertia_per_dt.apply(dw))
                 .saturating_sub(s.bv.apply(w_gear));
         let tau = match m.gear_pot {
@@ -355,12 +364,17 @@ impl Controller {
 
         // --- integrator: not further into a clamp ---
         // Outside the reference's count it integrates K_i·e. Inside, the link error is
-        // unmeasurable, but a creeping gear is not: it integrates −K_p·(ω_g − ṙ) (dead band of
-        // the observer's resolution), i.e. holds the gear where it is with the stiffness
-        // K_p, so an imperfect integrator value cannot let the link creep out of the count.
+        // unmeasurable, but a creeping gear is not: it integrates −K_p·(ω_g − ṙ), i.e. holds
+        // the gear where it is with the stiffness K_p, so an imperfect integrator value
+        // cannot let the link creep out of the count. Its dead band is the observer's
+        // resolution and bias bound (current offset, and R error × |i|): a hold that
+        // chased the bias of a warm motor under load hunted.
         let inc = if in_count {
             let slip = w_gear.saturating_sub(r.velocity_q16);
-            if slip.saturating_abs() <= s.w_deadband_q16 {
+            let dead_band = s
+                .w_deadband_q16
+                .saturating_add(s.w_bias_per_amp.apply(current.saturating_abs()));
+            if slip.saturating_abs() <= dead_band {
                 0
             } else {
                 -s.kp_dt.apply_wide(slip)

@@ -29,6 +29,13 @@ pub const BRAKE_FRACTION: I32F32 = I32F32::lit("0.5");
 /// Torque width over which the free-play compensation switches sides, N·m (≈ the gear
 /// train's dry friction).
 pub const FREE_PLAY_SWITCH_NM: I32F32 = I32F32::lit("0.1");
+/// Armature-resistance error the back-EMF observer's dead bands allow for, as a fraction
+/// of the configured R: copper from cold to hot (+40 %, design.md §9). With R off by ΔR
+/// the observer reads ω_g + ΔR·i/k_e.
+pub const RESISTANCE_TOLERANCE: I32F32 = I32F32::lit("0.4");
+/// Current-sense offset the observer's dead bands allow for, ADC counts (what
+/// calibration leaves, design.md §9); plus 1.5 counts of resolution.
+pub const CURRENT_OFFSET_TOLERANCE_COUNTS: i32 = 20;
 
 /// The per-tick constants of one configuration (all divisions done).
 ///
@@ -56,8 +63,13 @@ pub struct Schedule {
     pub(crate) int_band_q16: i32,
     /// Kp·dt, ‰ per rad/s of gear velocity per tick (gear hold inside the target count).
     pub(crate) kp_dt: Gain,
-    /// Dead band of the gear velocity for the gear hold, rad/s Q16 (1.5 ADC counts).
+    /// Dead band of the gear velocity for the gear hold at zero current, rad/s Q16: the
+    /// observer's resolution (1.5 ADC counts) and its bias from a current-sense offset
+    /// (`CURRENT_OFFSET_TOLERANCE_COUNTS`), R·(1.5 + 20)/(1024·k_e).
     pub(crate) w_deadband_q16: i32,
+    /// Growth of that dead band with |i|: the observer's bias from a resistance error,
+    /// `RESISTANCE_TOLERANCE`·R/k_e, rad/s per A.
+    pub(crate) w_bias_per_amp: Gain,
     pub(crate) kd: Gain,
     /// Derivative filter coefficient α = dt/(τ_f + dt), Q16.
     pub(crate) alpha: Gain,
@@ -277,9 +289,10 @@ impl Schedule {
                 i32::MAX
             },
             w_deadband_q16: to_q16(div(
-                mul(r, I64F64::from_num(3))?,
+                mul(r, I64F64::from_num(3 + 2 * CURRENT_OFFSET_TOLERANCE_COUNTS))?,
                 mul(ke, I64F64::from_num(2 * i32::from(ADC_COUNTS_PER_A)))?,
             )?)?,
+            w_bias_per_amp: to_gain(div(mul(wide(RESISTANCE_TOLERANCE), r)?, ke)?)?,
             kd: to_gain(wide(gains.kd))?,
             alpha: to_gain(alpha)?,
             ff_vel: to_gain(mul(duty_per_volt, add(ke, div(mul(r, bv)?, kt)?)?)?)?,
