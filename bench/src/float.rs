@@ -32,7 +32,10 @@
 
 use core::f32::consts::PI;
 
-use model::control::schedule::{CURRENT_OFFSET_TOLERANCE_COUNTS, RESISTANCE_TOLERANCE};
+use model::control::schedule::{
+    CURRENT_OFFSET_TOLERANCE_COUNTS, FREE_PLAY_SWITCH_NM, IMPACT_SPEED_FRACTION,
+    RESISTANCE_TOLERANCE,
+};
 use model::control::{encoder_delta, Command, Config, Schedule};
 use model::servo::{BridgeDemand, TickInput};
 use model::supervisor::{Fault, FaultCode, FaultSet, Supervisor};
@@ -116,6 +119,8 @@ pub struct FloatSchedule {
     int_band: f32,
     w_deadband: f32,
     w_bias_per_amp: f32,
+    impact_speed: f32,
+    contact_torque: f32,
     kd: f32,
     alpha: f32,
     ff_vel: f32,
@@ -181,6 +186,10 @@ impl FloatSchedule {
             w_deadband: r * (3.0 + 2.0 * CURRENT_OFFSET_TOLERANCE_COUNTS as f32)
                 / (ke * 2.0 * ADC_COUNTS_PER_A),
             w_bias_per_amp: i32f32(RESISTANCE_TOLERANCE.to_bits()) * r / ke,
+            impact_speed: i32f32(IMPACT_SPEED_FRACTION.to_bits())
+                * i32f32(sched.torque_limit().to_bits())
+                / libm::sqrtf(k * j_g * j_l / j),
+            contact_torque: i32f32(FREE_PLAY_SWITCH_NM.to_bits()) / 2.0,
             kd,
             alpha: DT / (tau_f + DT),
             ff_vel: dpv * (ke + r * bv / kt),
@@ -449,6 +458,7 @@ pub struct FloatController {
     w_ref: f32,
     w_gear_prev: f32,
     i_filtered: f32,
+    contact: i8,
     integ: f32,
     duty_prev: i16,
     defl_prev: f32,
@@ -472,6 +482,7 @@ impl FloatController {
             w_ref: 0.0,
             w_gear_prev: 0.0,
             i_filtered: 0.0,
+            contact: 0,
             integ: 0.0,
             duty_prev: 0,
             defl_prev: 0.0,
@@ -494,6 +505,7 @@ impl FloatController {
         self.w_ref = 0.0;
         self.w_gear_prev = 0.0;
         self.i_filtered = 0.0;
+        self.contact = 0;
         self.integ = 0.0;
         self.duty_prev = 0;
         self.defl_valid = false;
@@ -590,6 +602,19 @@ impl FloatController {
             let v = emf.clamp(-dl, dl);
             hi = v;
             lo = v;
+        }
+        if tau > s.contact_torque {
+            self.contact = 1;
+        } else if tau < -s.contact_torque {
+            self.contact = -1;
+        }
+        let closing = w_gear - self.w_link;
+        let zero_current = emf.clamp(lo, hi);
+        if self.contact <= 0 && closing > s.impact_speed {
+            hi = hi.min(zero_current);
+        }
+        if self.contact >= 0 && closing < -s.impact_speed {
+            lo = lo.max(zero_current);
         }
         let mut u = u;
         if r.velocity == 0.0
