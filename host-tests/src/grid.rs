@@ -14,7 +14,7 @@ use std::fmt;
 use model::control::{ClutchSetting, Command, Config};
 use model::supervisor::FaultCode;
 use model::{Angle, Inertia, Length};
-use plant::harness::{self, Metrics, Scenario, COUNT_RAD};
+use plant::harness::{self, Metrics, Scenario};
 use plant::overrides::{Override, Overrides, Param, Value};
 use proptest::prelude::*;
 use proptest::strategy::ValueTree;
@@ -421,6 +421,3 @@ pub fn fault_names(m: &Metrics) -> String {
         v.join(",")
     }
 }
-
-/// One encoder count, rad (re-exported for the printouts).
-pub const COUNT: f64 = COUNT_RAD;

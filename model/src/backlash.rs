@@ -60,7 +60,7 @@ impl Design {
         let xs = SoftFloat::from_bits(x.to_bits(), 32).0;
         // θ_b ≤ θ_max: cannot overflow.
         Ok(Angle::from_bits(or_overflow(
-            or_overflow(self.clearance_s.div(xs))?.to_i64(32, false),
+            or_overflow(self.clearance_s.div(xs))?.to_i64(32, false), // eq. 7: c/x = θ_max·t_c/x
         )?))
     }
 }

@@ -22,6 +22,7 @@ use fixed::types::I32F32;
 
 use crate::error::{Error, Result};
 use crate::fixmath::{SoftFloat, FRAC_PI_4, PI};
+use crate::stiffness::{k_eb, k_timo};
 use crate::units::{Angle, Length, Ratio, Stiffness, Stress};
 
 /// Smallest beam count n.
@@ -171,31 +172,6 @@ const fn to_stiffness(s: SoftFloat) -> Option<Stiffness> {
     }
 }
 
-/// k = C/L³ = (C/L)/L² (two roundings).
-pub(crate) const fn k_eb(c_k: SoftFloat, len: SoftFloat) -> Option<SoftFloat> {
-    match c_k.div(len) {
-        Some(q) => match len.mul(len) {
-            Some(l2) => q.div(l2),
-            None => None,
-        },
-        None => None,
-    }
-}
-
-/// k_T = C/(L³ + s·L) = (C/L)/(L² + s).
-pub(crate) const fn k_timo(c_k: SoftFloat, shear: SoftFloat, len: SoftFloat) -> Option<SoftFloat> {
-    match c_k.div(len) {
-        Some(q) => match len.mul(len) {
-            Some(l2) => match l2.add(shear) {
-                Some(d) => q.div(d),
-                None => None,
-            },
-            None => None,
-        },
-        None => None,
-    }
-}
-
 impl Design {
     /// The paper's design ([`DesignParams::PAPER`]), validated at compile time.
     pub const PAPER: Design = match Design::new(DesignParams::PAPER) {
@@ -272,20 +248,23 @@ impl Design {
         let nr = some_or_overflow!(n.mul(big_r));
 
         // Paper eq. 4: C = n·3·E·I·R² in N·mm³·mm, /1000 for N·m with L in mm.
-        let c_k = some_or_overflow!(some_or_overflow!(some_or_overflow!(some_or_overflow!(
-            some_or_overflow!(n.mul(three)).mul(e)
-        )
-        .mul(i))
-        .mul(some_or_overflow!(big_r.mul(big_r))))
-        .div(thousand));
+        let c_k = some_or_overflow!(
+            // eq. 4
+            some_or_overflow!(some_or_overflow!(some_or_overflow!(
+                some_or_overflow!(n.mul(three)).mul(e)
+            )
+            .mul(i))
+            .mul(some_or_overflow!(big_r.mul(big_r))))
+            .div(thousand)
+        );
         let inv_c_k = some_or_overflow!(c_k.recip());
 
         // Row 4T: with κ = 3E/(G+3E), L/(κGA) = L·(1 + 3E/G)/(3EA), hence
         // k_T = C/(L³ + s·L), s = (I/A)·(1 + 3E/G).
         let e_over_g = some_or_overflow!(e.div(g));
         let one_3eg = some_or_overflow!(SoftFloat::ONE.add(some_or_overflow!(three.mul(e_over_g))));
-        let shear = some_or_overflow!(some_or_overflow!(i.div(area)).mul(one_3eg));
-        // ν = E/(2G) − 1 (in (−1, 0.5]), κ = 3E/G / (1 + 3E/G).
+        let shear = some_or_overflow!(some_or_overflow!(i.div(area)).mul(one_3eg)); // eq. 4T
+                                                                                    // ν = E/(2G) − 1 (in (−1, 0.5]), κ = 3E/G / (1 + 3E/G).
         let half_eg = some_or_overflow!(to_fix(some_or_overflow!(
             e_over_g.div(SoftFloat::from_u64(2))
         )));
@@ -295,8 +274,8 @@ impl Design {
         ))));
 
         // P = τ/(n·R): τ in N·m, R in mm → 1000/(n·R) N per N·m.
-        let force_per_torque = some_or_overflow!(thousand.div(nr));
-        // σ = P·L·r/I (N·mm·mm/mm⁴ = MPa).
+        let force_per_torque = some_or_overflow!(thousand.div(nr)); // eq. 2
+                                                                    // σ = P·L·r/I (N·mm·mm/mm⁴ = MPa).
         let stress_coef = some_or_overflow!(some_or_overflow!(force_per_torque.mul(r)).div(i));
         // τ_cap·L = n·R·σ_allow·I/r (N·mm·mm) / 1000 → N·m·mm.
         let cap_coef = some_or_overflow!(some_or_overflow!(some_or_overflow!(some_or_overflow!(
@@ -312,12 +291,13 @@ impl Design {
         .mul(big_r))));
 
         // Paper eqs. 5–6 and the free play.
+        // eq. 5: θ_max = δ_max/l with δ_max = σ_allow·l²/(3·E·r).
         let theta_max = some_or_overflow!(some_or_overflow!(sigma.mul(l))
             .div(some_or_overflow!(some_or_overflow!(three.mul(e)).mul(r))));
         let delta_max = some_or_overflow!(theta_max.mul(l));
-        let clearance_s = some_or_overflow!(theta_max.mul(tc));
+        let clearance_s = some_or_overflow!(theta_max.mul(tc)); // eq. 6
         let free_play_s = some_or_overflow!(clearance_s.div(big_r));
-        let slot = some_or_overflow!(r.add(clearance_s));
+        let slot = some_or_overflow!(r.add(clearance_s)); // eq. 6
 
         // §2.1: a(L) = (6/5)·μ·δ/L per unit φ with δ = R·φ.
         let friction_coef = some_or_overflow!(some_or_overflow!(some_or_overflow!(

@@ -40,7 +40,7 @@ pub enum Branch {
 impl Setting {
     /// |τ| on `branch` for a beam deflection magnitude `d` (rad).
     fn branch_magnitude(&self, d: SoftFloat, branch: Branch) -> Option<SoftFloat> {
-        let a = self.friction.mul(d)?;
+        let a = self.friction.mul(d)?; // §2.1: (6/5)·μ·δ/L
         let factor = match branch {
             Branch::Loading => SoftFloat::ONE.add(a)?,
             Branch::Unloading => SoftFloat::ONE.saturating_sub(a),
@@ -162,7 +162,6 @@ mod tests {
     use super::*;
     use crate::beam::BeamModel;
     use crate::design::Design;
-    use crate::error::Error;
     use crate::units::Length;
     use fixed::types::I32F32;
 
@@ -204,14 +203,7 @@ mod tests {
         );
         // Unloading factor clamps at 0 beyond δ = (5/6)·L/μ.
         assert_eq!(s.branch_torque(a("2"), Branch::Unloading), Ok(Torque::ZERO));
-        assert_eq!(
-            s.branch_torque(Angle::MAX, Branch::Loading),
-            Err(Error::Overflow)
-        );
-        assert_eq!(
-            s.hysteretic_coupling_torque(Angle::MIN, Branch::Loading),
-            Err(Error::Overflow)
-        );
+        // Overflow at Angle::MAX/MIN: host-tests/tests/bad_input.rs, for both beam models.
     }
 
     #[test]

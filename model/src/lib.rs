@@ -7,8 +7,10 @@
 //!
 //! * [`units`]: one newtype per quantity, each with its unit and fixed-point format;
 //! * [`design`]: the validated [`Design`] and its derived constants ([`Design::paper`]);
-//! * [`beam`]: k(L), k_T(L), their inverses L(k), deflection, force, stress, capacity, and
-//!   the precomputed per-setting [`Setting`] for the control loop;
+//! * [`stiffness`]: k(L), k_T(L) and their inverses L(k) (eq. 4, row 4T);
+//! * [`stress`]: deflection, beam force, root stress and the stress-limited capacity;
+//! * [`beam`]: the beam model and the precomputed per-setting [`Setting`] for the control
+//!   loop;
 //! * [`backlash`]: paper eqs. 5–7 and the free-play dead zone of the coupling;
 //! * [`hysteresis`]: friction hysteresis branches and their state machine (§2.1);
 //! * [`dynamics`]: natural frequency and the stiffness/clutch setting for a wanted one;
@@ -50,6 +52,8 @@ pub mod fixmath;
 pub mod hysteresis;
 pub mod sensors;
 pub mod servo;
+pub mod stiffness;
+pub mod stress;
 pub mod supervisor;
 pub mod units;
 
