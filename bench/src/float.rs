@@ -33,6 +33,10 @@
 
 use core::f32::consts::PI;
 
+use model::control::schedule::{
+    CURRENT_OFFSET_TOLERANCE_COUNTS, FREE_PLAY_SWITCH_NM, IMPACT_SPEED_FRACTION,
+    RESISTANCE_TOLERANCE,
+};
 use model::control::{Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
 use model::servo::{BridgeDemand, TickInput};
@@ -117,6 +121,9 @@ pub struct FloatSchedule {
     brake_min_w: f32,
     int_band: f32,
     w_deadband: f32,
+    w_bias_per_amp: f32,
+    impact_speed: f32,
+    contact_torque: f32,
     kd: f32,
     alpha: f32,
     ff_vel: f32,
@@ -179,7 +186,13 @@ impl FloatSchedule {
             two_a_brake: 0.5 * kt * i_lim * 2.0 / j,
             brake_min_w: 0.5,
             int_band: if kp > 0.0 { max_duty / kp } else { f32::MAX },
-            w_deadband: r * 3.0 / (ke * 2.0 * ADC_COUNTS_PER_A),
+            w_deadband: r * (3.0 + 2.0 * CURRENT_OFFSET_TOLERANCE_COUNTS as f32)
+                / (ke * 2.0 * ADC_COUNTS_PER_A),
+            w_bias_per_amp: i32f32(RESISTANCE_TOLERANCE.to_bits()) * r / ke,
+            impact_speed: i32f32(IMPACT_SPEED_FRACTION.to_bits())
+                * i32f32(sched.torque_limit().to_bits())
+                / libm::sqrtf(k * j_g * j_l / j),
+            contact_torque: i32f32(FREE_PLAY_SWITCH_NM.to_bits()) / 2.0,
             kd,
             alpha: DT / (tau_f + DT),
             ff_vel: dpv * (ke + r * bv / kt),
@@ -447,6 +460,8 @@ pub struct FloatController {
     w_fb: f32,
     w_ref: f32,
     w_gear_prev: f32,
+    i_filtered: f32,
+    contact: i8,
     integ: f32,
     duty_prev: i16,
     defl_prev: f32,
@@ -469,6 +484,8 @@ impl FloatController {
             w_fb: 0.0,
             w_ref: 0.0,
             w_gear_prev: 0.0,
+            i_filtered: 0.0,
+            contact: 0,
             integ: 0.0,
             duty_prev: 0,
             defl_prev: 0.0,
@@ -490,6 +507,8 @@ impl FloatController {
         self.w_fb = 0.0;
         self.w_ref = 0.0;
         self.w_gear_prev = 0.0;
+        self.i_filtered = 0.0;
+        self.contact = 0;
         self.integ = 0.0;
         self.duty_prev = 0;
         self.defl_valid = false;
@@ -535,9 +554,10 @@ impl FloatController {
         self.w_fb += s.alpha * (w_gear - self.w_fb);
 
         // --- coupling torque estimate ---
-        let dw = w_gear - self.w_gear_prev;
-        self.w_gear_prev = w_gear;
-        let tau_i = s.kt * current - s.jg_fs * dw - s.bv * w_gear;
+        self.i_filtered += s.alpha * (current - self.i_filtered);
+        let dw = self.w_fb - self.w_gear_prev;
+        self.w_gear_prev = self.w_fb;
+        let tau_i = s.kt * self.i_filtered - s.jg_fs * dw - s.bv * w_gear;
         let tau = match m.gear_pot {
             Some(pot) if s.w_defl != 0.0 => {
                 let pot = i32::from(pot) & (POT_COUNTS - 1);
@@ -586,6 +606,19 @@ impl FloatController {
             hi = v;
             lo = v;
         }
+        if tau > s.contact_torque {
+            self.contact = 1;
+        } else if tau < -s.contact_torque {
+            self.contact = -1;
+        }
+        let closing = w_gear - self.w_link;
+        let zero_current = emf.clamp(lo, hi);
+        if self.contact <= 0 && closing > s.impact_speed {
+            hi = hi.min(zero_current);
+        }
+        if self.contact >= 0 && closing < -s.impact_speed {
+            lo = lo.max(zero_current);
+        }
         let mut u = u;
         if r.velocity == 0.0
             && r.acceleration == 0.0
@@ -609,7 +642,7 @@ impl FloatController {
         // --- integrator ---
         let inc = if in_count {
             let slip = w_gear - r.velocity;
-            if libm::fabsf(slip) <= s.w_deadband {
+            if libm::fabsf(slip) <= s.w_deadband + s.w_bias_per_amp * libm::fabsf(current) {
                 0.0
             } else {
                 -s.kp_dt * slip
@@ -653,6 +686,8 @@ pub struct FloatSupervisor {
     position_min: f32,
     position_max: f32,
     timeout_ticks: u32,
+    overload_ticks: u16,
+    over_ticks: u16,
     latched: FaultSet,
     prev_encoder: Option<u16>,
     prev_pot: Option<u16>,
@@ -686,6 +721,8 @@ impl FloatSupervisor {
             position_min: i32f32(cfg.position_min.to_bits()),
             position_max: i32f32(cfg.position_max.to_bits()),
             timeout_ticks: cfg.command_timeout_ms,
+            overload_ticks: cfg.overload_ticks,
+            over_ticks: 0,
             latched: FaultSet(0),
             prev_encoder: None,
             prev_pot: None,
@@ -771,7 +808,12 @@ impl FloatSupervisor {
         }
         let tau = out.torque_estimate;
         if libm::fabsf(tau) > self.torque_cap {
-            note(self, FaultCode::BeamOverload, to_micro(tau));
+            self.over_ticks = self.over_ticks.saturating_add(1);
+            if self.over_ticks >= self.overload_ticks {
+                note(self, FaultCode::BeamOverload, to_micro(tau));
+            }
+        } else {
+            self.over_ticks = 0;
         }
         let theta = out.link_angle;
         if theta < self.position_min || theta > self.position_max {

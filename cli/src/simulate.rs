@@ -6,7 +6,12 @@
 //! vsa simulate [--clutch-length 3mm | --stiffness 250Nm/rad] [--inertia 1e-3] [--load 0.3Nm]
 //!              (--step 0.5rad | --move 0.5rad:200ms | --sine 0.2rad:1Hz)
 //!              [--seconds 2] [--csv FILE] [--json] [--no-pot] [--settle 0.5]
+//!              [--plant NAME=VALUE]...
 //! ```
+//!
+//! `--plant` makes the simulated actuator off-nominal (`plant::overrides`: e.g.
+//! `resistance=x1.3`, `supply=11.8V`, `pot-offset=3`); the controller keeps its nominal
+//! configuration.
 //!
 //! The run holds for `--settle` seconds with the load applied (the coupling starts
 //! deflected by it), gives the command, and runs `--seconds` more. Metrics are computed
@@ -19,6 +24,7 @@ use std::io::{BufWriter, Write};
 use model::control::{ClutchSetting, Command, Config};
 use model::{Angle, Design, Frequency, Inertia, Length, Stiffness};
 use plant::harness::{self, Metrics, Sample, Scenario};
+use plant::overrides::Overrides;
 
 /// Arguments of `vsa simulate`.
 #[derive(clap::Args, Debug, Clone)]
@@ -69,6 +75,13 @@ pub struct SimulateArgs {
     /// Run without the gear potentiometer (torque estimate from the current only).
     #[arg(long)]
     pub no_pot: bool,
+    /// Change the simulated actuator (not the controller's model): `NAME=VALUE`, VALUE
+    /// absolute with its unit or a factor `xF` of the nominal value; repeatable. Names:
+    /// resistance (ohm), torque-constant (Nm/A), back-emf (Vs/rad), gear-inertia (kgm2),
+    /// gear-friction (Nm), supply (V), current-offset (counts), current-gain (factor),
+    /// pot-offset (counts), link-inertia (kgm2), link-friction (Nm).
+    #[arg(long = "plant", value_name = "NAME=VALUE", allow_hyphen_values = true)]
+    pub plant: Vec<String>,
 }
 
 /// A value and its unit suffix parsed from `s`: `"0.5rad"` → (0.5, "rad").
@@ -238,7 +251,7 @@ pub fn metrics_json(m: &Metrics, tracking: bool) -> String {
             "\"rise_time_s\":{},\"peak_stress_ratio\":{},\"allowable_stress_pa\":{},",
             "\"max_error_rad\":{},\"current_limited\":{},\"duty_saturated\":{},",
             "\"steady_duty_span\":{},\"steady_count_span\":{},\"peak_spring_torque_nm\":{},",
-            "\"target_rad\":{},\"output_hash\":\"{:016x}\",\"ticks\":{}}}"
+            "\"target_rad\":{},\"output_hash\":\"{:016x}\",\"ticks\":{},\"faults\":[{}]}}"
         ),
         step(m.overshoot_pct),
         opt(step_opt(m.settling_time_s)),
@@ -258,7 +271,30 @@ pub fn metrics_json(m: &Metrics, tracking: bool) -> String {
         m.target_rad,
         m.output_hash,
         m.ticks,
+        fault_names(m)
+            .iter()
+            .map(|n| format!("\"{n}\""))
+            .collect::<Vec<_>>()
+            .join(","),
     )
+}
+
+/// Names of the faults latched during the run, in code order.
+fn fault_names(m: &Metrics) -> Vec<&'static str> {
+    model::supervisor::FaultCode::ALL
+        .iter()
+        .filter(|c| m.faults.contains(**c))
+        .map(|c| c.name())
+        .collect()
+}
+
+/// The `--plant` overrides.
+fn overrides(args: &SimulateArgs) -> Result<Overrides, String> {
+    let mut o = Overrides::NONE;
+    for s in &args.plant {
+        o.push_str(s).map_err(|e| format!("--plant `{s}`: {e}"))?;
+    }
+    Ok(o)
 }
 
 /// CSV header of [`csv_row`].
@@ -291,6 +327,7 @@ pub fn run(args: &SimulateArgs) -> Result<(), String> {
     let (cmd, period_s) = command(args)?;
     let load = parse(&args.load, "load", TORQUE)?;
     let mut sc = Scenario::new(cfg, cmd);
+    sc.plant = overrides(args)?;
     sc.design = Design::paper();
     sc.load_nm = load as f32;
     sc.settle_ticks = ticks(&args.settle, "--settle")?;
@@ -318,7 +355,7 @@ pub fn run(args: &SimulateArgs) -> Result<(), String> {
             }
         }
     })
-    .map_err(|e| format!("controller: {e}"))?;
+    .map_err(|e| e.to_string())?;
     if let Some(e) = io_err {
         return Err(format!("csv: {e}"));
     }
@@ -357,6 +394,15 @@ pub fn run(args: &SimulateArgs) -> Result<(), String> {
         "limits             torque {}, current {}, duty {}",
         m.torque_limited, m.current_limited, m.duty_saturated
     );
+    let faults = fault_names(&m);
+    match m.first_fault {
+        Some(f) => println!(
+            "faults             {} (first at {} ms)",
+            faults.join(", "),
+            i64::from(f.tick) - i64::from(sc.settle_ticks)
+        ),
+        None => println!("faults             none"),
+    }
     Ok(())
 }
 

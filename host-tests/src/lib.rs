@@ -3,6 +3,7 @@
 #![forbid(unsafe_code)]
 
 pub mod convert;
+pub mod grid;
 pub mod oracle;
 pub mod reference;
 pub mod sim;

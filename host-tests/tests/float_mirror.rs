@@ -68,7 +68,7 @@ fn duty(b: BridgeDemand) -> i16 {
 /// 0.3 N·m load) at L = 1 … 5 mm, the fixed-point servo and the f32 port each in its own
 /// closed loop with the simulated actuator: neither faults, the link angles stay within
 /// one encoder count (2π/4096 = 1.53e-3 rad) of each other at every tick, and the duties
-/// differ by less than 5 ‰ on average.
+/// differ by less than 8 ‰ on average.
 #[test]
 fn closed_loops_track_each_other_within_one_encoder_count() {
     let design = Design::paper();
@@ -103,8 +103,11 @@ fn closed_loops_track_each_other_within_one_encoder_count() {
         }
         let mean = duty_diff as f64 / 2000.0;
         assert!(worst_angle < count, "L = {mm} mm: {worst_angle} rad apart");
+        // The free-play impact limit is a switch on the closing speed: where fixed and f32
+        // differ by an LSB it flips a tick apart (measured 6.0 ‰ at L = 4 mm, < 5 ‰ before
+        // the limit existed).
         assert!(
-            mean < 5.0,
+            mean < 8.0,
             "L = {mm} mm: mean |duty difference| {mean} permille"
         );
     }

@@ -49,6 +49,18 @@ pub enum ServoError {
     Faulted,
 }
 
+impl core::fmt::Display for ServoError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ServoError::Control(e) => write!(f, "controller: {e}"),
+            ServoError::Supervisor(e) => write!(f, "supervisor: {e}"),
+            ServoError::Faulted => f.write_str("a fault is latched (clear it first)"),
+        }
+    }
+}
+
+impl core::error::Error for ServoError {}
+
 /// One tick's raw inputs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TickInput {

@@ -11,14 +11,21 @@
 //! | 3 | [`FaultCode::OverCurrent`] | \|i\| > trip current | mA |
 //! | 4 | [`FaultCode::SensorJump`] | link encoder moved more than the physics allows in one tick, or the pot did | counts |
 //! | 5 | [`FaultCode::SensorStuck`] | the deflection pot − encoder is beyond the beams' envelope, the link count has not changed for `stuck_ticks`, and the torque estimate is below half the capacity (the link reading is frozen while the gear moves on) | µrad of deflection |
-//! | 6 | [`FaultCode::BeamOverload`] | \|τ̂\| > τ_cap(L), or the measured deflection is beyond the envelope | µN·m, or µrad |
+//! | 6 | [`FaultCode::BeamOverload`] | \|τ̂\| > τ_cap(L) in `overload_ticks` consecutive ticks, or the measured deflection is beyond the envelope | µN·m, or µrad |
 //! | 7 | [`FaultCode::PositionLimit`] | measured link angle outside the position window | µrad |
 //! | 8 | [`FaultCode::DeadlineMissed`] | the control period overran (reported by the firmware) | sysclk counts of the tick |
 //! | 9 | [`FaultCode::CommandTimeout`] | heartbeats armed and none for `command_timeout_ms` | ms since the last |
 //!
 //! Deflection envelope: φ_b + θ_cap(L) + one pot count + half an encoder count (the two
-//! quantisations): any larger measured deflection means the beams are bent beyond their
-//! stress capacity or a sensor lies. The jump bound is `max_link_speed`·1 ms + 1 count.
+//! quantisations) + the pot centre's calibration tolerance (`pot_tolerance_counts`, what
+//! calibration leaves, design.md §9): any larger measured deflection means the beams are
+//! bent beyond their stress capacity or a sensor lies.
+//!
+//! The torque estimate is a model output (k_t·i minus the gear's inertial torque from the
+//! back-EMF observer): a duty jump with an imperfect resistance or back-EMF constant gives
+//! it a one-tick spike of several N·m that no beam sees. A real overload lasts (a
+//! collision, a stall against the load), so the torque check latches after
+//! `overload_ticks` consecutive ticks beyond τ_cap (default 2). The jump bound is `max_link_speed`·1 ms + 1 count.
 //!
 //! Every threshold is converted to the per-tick formats when the supervisor is built
 //! ([`Supervisor::new`]), never per tick; the per-tick work is compares and one multiply.
@@ -165,6 +172,12 @@ pub struct SupervisorConfig {
     pub position_max: Angle,
     /// Heartbeat timeout, ms, ≥ 1. Armed by the first heartbeat. Default 100 ms.
     pub command_timeout_ms: u32,
+    /// Calibration tolerance of the gear pot's centre, counts, ≤ 100, added to the
+    /// deflection envelope. Default 3 (what calibration leaves, design.md §9).
+    pub pot_tolerance_counts: u16,
+    /// Consecutive ticks the torque estimate must exceed τ_cap before `beam-overload`
+    /// latches, 1..=10. Default 2 (a one-tick spike of the estimate is not a load).
+    pub overload_ticks: u16,
 }
 
 impl SupervisorConfig {
@@ -179,6 +192,8 @@ impl SupervisorConfig {
         position_min: Angle::from_fixed(I32F32::lit("-2.5")),
         position_max: Angle::from_fixed(I32F32::lit("2.5")),
         command_timeout_ms: 100,
+        pot_tolerance_counts: 3,
+        overload_ticks: 2,
     };
 }
 
@@ -204,7 +219,28 @@ pub enum SupervisorError {
     PositionWindow,
     /// `command_timeout_ms` is 0.
     Timeout,
+    /// `pot_tolerance_counts` above 100.
+    PotTolerance,
+    /// `overload_ticks` not in 1..=10.
+    OverloadTicks,
 }
+
+impl core::fmt::Display for SupervisorError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            SupervisorError::TripCurrent => "trip current outside (0, 2) A",
+            SupervisorError::AdcWindow => "current ADC window empty or beyond 4095",
+            SupervisorError::JumpBound => "sensor jump bound out of range",
+            SupervisorError::StuckTicks => "stuck-sensor ticks must be at least 1",
+            SupervisorError::PositionWindow => "position window empty",
+            SupervisorError::Timeout => "command timeout must be at least 1 ms",
+            SupervisorError::PotTolerance => "pot tolerance above 100 counts",
+            SupervisorError::OverloadTicks => "overload ticks outside 1..=10",
+        })
+    }
+}
+
+impl core::error::Error for SupervisorError {}
 
 /// Inputs of one check, besides the controller's output.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -236,6 +272,7 @@ struct Thresholds {
     position_min: i64,
     position_max: i64,
     timeout_ticks: u32,
+    overload_ticks: u16,
 }
 
 /// The supervisor: thresholds derived from the configuration, the latch and the little
@@ -249,6 +286,8 @@ pub struct Supervisor {
     prev_encoder: Option<u16>,
     prev_pot: Option<u16>,
     unchanged_ticks: u16,
+    /// Consecutive ticks the torque estimate has been beyond τ_cap.
+    over_ticks: u16,
     last_heartbeat: Option<u32>,
 }
 
@@ -268,6 +307,7 @@ impl Supervisor {
             prev_encoder: None,
             prev_pot: None,
             unchanged_ticks: 0,
+            over_ticks: 0,
             last_heartbeat: None,
         })
     }
@@ -311,6 +351,12 @@ impl Supervisor {
         if cfg.command_timeout_ms == 0 {
             return Err(SupervisorError::Timeout);
         }
+        if cfg.pot_tolerance_counts > 100 {
+            return Err(SupervisorError::PotTolerance);
+        }
+        if !(1..=10).contains(&cfg.overload_ticks) {
+            return Err(SupervisorError::OverloadTicks);
+        }
         // Counts per tick at max speed: speed[rad/s]·1e-3 s / count, rounded up, + 1.
         let per_tick = speed / 1000;
         let max_jump_counts = (per_tick + COUNT_Q32 - 1) / COUNT_Q32 + 1;
@@ -319,7 +365,7 @@ impl Supervisor {
             .free_play()
             .to_bits()
             .saturating_add(setting.deflection_capacity().to_bits())
-            .saturating_add(POT_COUNT_Q32)
+            .saturating_add(POT_COUNT_Q32 * (1 + i64::from(cfg.pot_tolerance_counts)))
             .saturating_add(COUNT_Q32 / 2);
         Ok(Thresholds {
             // |adc − mid| > trip·1024, rounded down: trips at or above the trip current.
@@ -335,6 +381,7 @@ impl Supervisor {
             position_min: cfg.position_min.to_bits(),
             position_max: cfg.position_max.to_bits(),
             timeout_ticks: cfg.command_timeout_ms,
+            overload_ticks: cfg.overload_ticks,
         })
     }
 
@@ -397,6 +444,7 @@ impl Supervisor {
         self.prev_encoder = None;
         self.prev_pot = None;
         self.unchanged_ticks = 0;
+        self.over_ticks = 0;
     }
 
     /// Clears the latch (the caller decides when the motor may run again).
@@ -499,7 +547,12 @@ impl Supervisor {
 
         let tau = out.torque_estimate.to_bits();
         if tau.saturating_abs() > th.torque_cap {
-            note(self, FaultCode::BeamOverload, to_micro(tau));
+            self.over_ticks = self.over_ticks.saturating_add(1);
+            if self.over_ticks >= th.overload_ticks {
+                note(self, FaultCode::BeamOverload, to_micro(tau));
+            }
+        } else {
+            self.over_ticks = 0;
         }
 
         let theta = out.link_angle.to_bits();
@@ -575,7 +628,7 @@ mod tests {
         assert_eq!(s.torque_capacity(), sched.setting().torque_capacity());
         let env = s.deflection_envelope().to_bits();
         let parts = sched.free_play().to_bits() + sched.setting().deflection_capacity().to_bits();
-        assert_eq!(env, parts + POT_COUNT_Q32 + COUNT_Q32 / 2);
+        assert_eq!(env, parts + 4 * POT_COUNT_Q32 + COUNT_Q32 / 2);
     }
 
     #[test]
@@ -622,8 +675,14 @@ mod tests {
         out.torque_estimate = Torque::from_bits(cap);
         assert_eq!(s.check(1, &quiet(0), &out), None);
         out.torque_estimate = Torque::from_bits(-cap - 1);
+        // One tick beyond is a spike of the estimate, two are a load.
+        assert_eq!(s.check(2, &quiet(0), &out), None);
+        out.torque_estimate = Torque::from_bits(cap);
+        assert_eq!(s.check(3, &quiet(0), &out), None);
+        out.torque_estimate = Torque::from_bits(-cap - 1);
+        assert_eq!(s.check(4, &quiet(0), &out), None);
         assert_eq!(
-            s.check(2, &quiet(0), &out).unwrap().code,
+            s.check(5, &quiet(0), &out).unwrap().code,
             FaultCode::BeamOverload
         );
         let mut out = at_rest();
@@ -636,10 +695,16 @@ mod tests {
 
     #[test]
     fn deflection_beyond_the_envelope_is_overload_unless_the_encoder_is_frozen() {
-        let (mut s, _) = sup(1);
-        // Pot 4 counts (0.020 rad) off the link: beyond φ_b + θ_cap + margins at L = 1 mm.
+        // Pot 3 counts off: the calibration tolerance, no fault.
         let mut r = quiet(0);
-        r.gear_pot = Some(516);
+        r.gear_pot = Some(515);
+        let (mut s, _) = sup(1);
+        for t in 1..=5 {
+            assert_eq!(s.check(t, &r, &at_rest()), None);
+        }
+        let (mut s, _) = sup(1);
+        // Pot 8 counts (0.041 rad) off the link: beyond φ_b + θ_cap + margins at L = 1 mm.
+        r.gear_pot = Some(520);
         s.check(1, &quiet(0), &at_rest());
         let f = s.check(2, &r, &at_rest()).unwrap();
         // The link count did not change in 1 tick only: not yet "stuck".
@@ -650,7 +715,7 @@ mod tests {
         }
         let f = s.check(4, &r, &at_rest()).unwrap();
         assert_eq!(f.code, FaultCode::SensorStuck);
-        assert!(f.value > 19_000, "{f:?}");
+        assert!(f.value > 39_000, "{f:?}");
     }
 
     #[test]
@@ -693,5 +758,17 @@ mod tests {
             SupervisorError::PositionWindow
         );
         assert_eq!(bad(|c| c.command_timeout_ms = 0), SupervisorError::Timeout);
+        assert_eq!(
+            bad(|c| c.pot_tolerance_counts = 101),
+            SupervisorError::PotTolerance
+        );
+        assert_eq!(
+            bad(|c| c.overload_ticks = 0),
+            SupervisorError::OverloadTicks
+        );
+        assert_eq!(
+            bad(|c| c.overload_ticks = 11),
+            SupervisorError::OverloadTicks
+        );
     }
 }

@@ -184,6 +184,9 @@ pub struct SensorConfig {
     pub encoder_zero_counts: u16,
     /// Current-sense offset error, ADC counts (added to the mid-scale 2048). Default 0.
     pub current_offset_counts: f32,
+    /// Current-sense gain error: the ADC reads `current_gain`·i (1024 counts/A nominal).
+    /// Default 1.
+    pub current_gain: f32,
     /// Standard deviation of the current-sense noise, ADC counts (approximately Gaussian,
     /// sum of four uniforms). Default 0 (noise off).
     pub current_noise_counts: f32,
@@ -197,6 +200,7 @@ impl Default for SensorConfig {
             pot_center_counts: 512.0,
             encoder_zero_counts: 0,
             current_offset_counts: 0.0,
+            current_gain: 1.0,
             current_noise_counts: 0.0,
             noise_seed: 0x2545_F491,
         }

@@ -1,5 +1,5 @@
 //! Closed-loop harness: the simulated actuator ([`Plant`]) driven by the fixed-point
-//! controller of the `model` crate ([`Controller`]), with the step-response and tracking
+//! servo of the `model` crate ([`Servo`]: controller and supervisor), with the step-response and tracking
 //! metrics computed on the fly (no_std, no allocation: samples are streamed to a
 //! caller-supplied closure).
 //!
@@ -7,22 +7,26 @@
 //! (`design.md` §2): stiffness k(L), free play φ_b, hysteresis coefficient (6/5)·μ·R/L and
 //! root stress per N·m; the motor and link from the controller's configuration, so the
 //! controller's model and the plant agree (the plant adds Coulomb friction, hysteresis and
-//! quantisation the controller does not model).
+//! quantisation the controller does not model) unless the scenario makes the actuator
+//! off-nominal ([`Scenario::plant`], [`crate::overrides`]).
 //!
 //! A run: hold for `settle_ticks` (so that a constant load is taken up by the coupling and
 //! the integrator), give the command, run `run_ticks` more. Metrics use the plant's *true*
 //! link angle and beam stress.
 
-use model::control::{Command, Config, ControlError, Controller, Flags, Measurements, Schedule};
+use model::control::{Command, Config, ControlError, Flags, Schedule};
 use model::sensors::encoder_delta;
+use model::servo::{BridgeDemand, Servo, ServoError, TickInput};
+use model::supervisor::{Fault, FaultSet, SupervisorConfig};
 use model::Design;
 
 use crate::config::{
     CouplingConfig, LinkConfig, LoadConfig, MotorConfig, PlantConfig, ProfileStep, TorqueProfile,
 };
 use crate::metrics::{Span, StepResponse};
+use crate::overrides::Overrides;
 use crate::sensors::ENCODER_COUNT_RAD;
-use crate::sim::Plant;
+use crate::sim::{BridgeCommand, Plant};
 
 const Q32: f64 = 4_294_967_296.0;
 const Q64: f64 = Q32 * Q32;
@@ -65,6 +69,12 @@ pub struct Scenario {
     /// the beams at rest, as after power-up under load) instead of in the middle of the
     /// free play, where applying the load at t = 0 would slam the link into the beams.
     pub preload: bool,
+    /// Changes of the simulated actuator from the nominal one the controller is
+    /// configured with (design.md §9); the controller does not see them.
+    pub plant: Overrides,
+    /// The supervisor's settings (the servo runs the controller under the supervisor; a
+    /// latched fault turns the bridge off).
+    pub supervision: SupervisorConfig,
 }
 
 impl Scenario {
@@ -85,6 +95,8 @@ impl Scenario {
             rms_from_ticks: 0,
             substeps: 0,
             preload: true,
+            plant: Overrides::NONE,
+            supervision: SupervisorConfig::DEFAULT,
         }
     }
 }
@@ -158,6 +170,17 @@ pub struct Metrics {
     pub output_hash: u64,
     /// Ticks simulated.
     pub ticks: u32,
+    /// Faults latched during the run (empty if none).
+    pub faults: FaultSet,
+    /// The first fault latched, if any.
+    pub first_fault: Option<Fault>,
+    /// Largest |beam stress| from the tick after the first fault on (the fault
+    /// reaction's figure), Pa; 0 without a fault.
+    pub peak_stress_after_fault_pa: f64,
+    /// Largest |beam stress| up to and including the tick of the first fault (the whole
+    /// run without one), Pa: a fault latched with this below σ_allow is a false trip
+    /// unless a sensor really failed.
+    pub peak_stress_before_fault_pa: f64,
 }
 
 /// FNV-1a 64 offset basis.
@@ -397,12 +420,15 @@ impl Recorder {
     }
 }
 
-/// The plant for `sc`: its configuration with the load step, preloaded by a constant load.
+/// The plant for `sc`: its configuration with the overrides and the load step, preloaded
+/// by a constant load.
 ///
 /// # Errors
 /// As [`plant_config`].
 pub fn plant_for(sc: &Scenario) -> Result<Plant, ControlError> {
-    let mut pc = plant_config(&sc.design, &sc.config, sc.load_nm)?;
+    let mut pc = sc
+        .plant
+        .apply(&plant_config(&sc.design, &sc.config, sc.load_nm)?);
     pc.substeps = sc.substeps;
     if let Some(d) = sc.disturbance {
         let at = i64::from(sc.settle_ticks) + i64::from(d.after_command_ticks);
@@ -431,11 +457,16 @@ pub fn allowable_stress_pa(design: &Design) -> f64 {
     fx32(design.params().allowable_stress.to_bits()) * 1e6
 }
 
-/// Runs `sc`, calling `on_sample` once per tick, and returns the metrics.
+/// What the H-bridge does when the servo turns the motor off (disabled or faulted).
+pub const OFF_BRIDGE: BridgeCommand = BridgeCommand::Coast;
+
+/// Runs `sc` — the servo (controller under the supervisor, enabled from the first tick)
+/// against the simulated actuator — calling `on_sample` once per tick, and returns the
+/// metrics. After a fault the bridge is off ([`OFF_BRIDGE`]) and the run goes on.
 ///
 /// # Errors
 /// The controller rejected the configuration or the command.
-pub fn run<F: FnMut(&Sample)>(sc: &Scenario, on_sample: F) -> Result<Metrics, ControlError> {
+pub fn run<F: FnMut(&Sample)>(sc: &Scenario, on_sample: F) -> Result<Metrics, ServoError> {
     run_script(sc, |_| None, on_sample)
 }
 
@@ -443,18 +474,19 @@ pub fn run<F: FnMut(&Sample)>(sc: &Scenario, on_sample: F) -> Result<Metrics, Co
 /// replaces it: a trajectory given as a sequence of moves (`vsa advise --trajectory`).
 ///
 /// # Errors
-/// The controller rejected the configuration or a command.
+/// The servo rejected the configuration or a command.
 pub fn run_script<S, F>(
     sc: &Scenario,
     mut script: S,
     mut on_sample: F,
-) -> Result<Metrics, ControlError>
+) -> Result<Metrics, ServoError>
 where
     S: FnMut(u32) -> Option<Command>,
     F: FnMut(&Sample),
 {
-    let mut plant = plant_for(sc)?;
-    let mut ctl = Controller::new(&sc.design, &sc.config)?;
+    let mut plant = plant_for(sc).map_err(ServoError::Control)?;
+    let mut servo = Servo::new(&sc.design, &sc.config, &sc.supervision)?;
+    servo.enable()?;
     let mut readings = plant.readings();
     let mut rec = Recorder::new(
         sc.settle_ticks,
@@ -464,36 +496,56 @@ where
         allowable_stress_pa(&sc.design),
         readings.link_encoder,
     );
+    let (mut after_fault, mut before_fault) = (0.0f64, 0.0f64);
     for tick in 0..rec.total_ticks() {
         if tick == sc.settle_ticks {
-            ctl.command(sc.command)?;
+            // A fault latched during the hold refuses the command; the run goes on (its
+            // metrics show the fault).
+            match servo.command(sc.command) {
+                Ok(()) | Err(ServoError::Faulted) => {}
+                Err(e) => return Err(e),
+            }
         } else if let Some(cmd) = tick
             .checked_sub(sc.settle_ticks)
             .filter(|&n| n > 0)
             .and_then(&mut script)
         {
-            ctl.command(cmd)?;
+            match servo.command(cmd) {
+                Ok(()) | Err(ServoError::Faulted) => {}
+                Err(e) => return Err(e),
+            }
         }
-        let meas = Measurements {
+        let out = servo.tick(&TickInput {
             link_encoder: readings.link_encoder,
-            gear_pot: if sc.use_pot {
-                Some(readings.gear_pot)
-            } else {
-                None
-            },
+            gear_pot: sc.use_pot.then_some(readings.gear_pot),
             current_adc: readings.current_adc,
-            applied_duty: None,
-        };
-        let out = ctl.step(&meas);
+            read_error: None,
+        });
         if tick == sc.settle_ticks {
             rec.on_command(
                 plant.state().link_angle_rad,
-                fx32(ctl.trajectory().target().to_bits()),
+                fx32(servo.controller().trajectory().target().to_bits()),
             );
         }
-        readings = plant.step_tick(out.duty);
-        let sample = rec.record(tick, &out, out.duty, &readings, &plant.state());
+        let (cmd, duty) = match out.bridge {
+            BridgeDemand::Drive(d) => (BridgeCommand::Drive(d), d),
+            BridgeDemand::Off => (OFF_BRIDGE, 0),
+        };
+        readings = plant.step_tick_cmd(cmd);
+        let st = plant.state();
+        let stress = f64::from(st.beam_stress_pa).abs();
+        if out.new_fault.is_none() && !servo.faults().is_empty() {
+            after_fault = after_fault.max(stress);
+        } else if servo.faults().is_empty() || out.new_fault.is_some() {
+            before_fault = before_fault.max(stress);
+        }
+        let sample = rec.record(tick, &out.control, duty, &readings, &st);
         on_sample(&sample);
     }
-    Ok(rec.finish())
+    let mut m = rec.finish();
+    m.peak_stress_after_fault_pa = after_fault;
+    m.peak_stress_before_fault_pa = before_fault;
+    m.faults = servo.faults();
+    m.first_fault = servo.supervisor().first_fault();
+    Ok(m)
 }

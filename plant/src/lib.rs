@@ -47,6 +47,7 @@ mod config;
 mod coupling;
 pub mod harness;
 pub mod metrics;
+pub mod overrides;
 pub mod scenario;
 mod sensors;
 pub mod served;

@@ -87,7 +87,7 @@ pub struct SensorReadings {
     /// Link-side magnetic encoder, 0..=4095 per revolution, wraps; truncates (floor);
     /// `encoder_zero_counts` at link angle 0.
     pub link_encoder: u16,
-    /// Motor current ADC, 0..=4095: 2048 + 1024·i (i in A, ±2 A full scale) + offset error +
+    /// Motor current ADC, 0..=4095: 2048 + 1024·gain·i (i in A, ±2 A full scale) + offset error +
     /// noise, rounded, clamped at the rails.
     pub current_adc: u16,
 }
@@ -118,10 +118,10 @@ pub(crate) fn encoder_counts(link_angle_rad: f64, zero: u16) -> u16 {
     c.rem_euclid(i64::from(ENCODER_COUNTS)) as u16
 }
 
-pub(crate) fn adc_counts(current_a: f32, offset: f32, noise: f32) -> u16 {
+pub(crate) fn adc_counts(current_a: f32, gain: f32, offset: f32, noise: f32) -> u16 {
     // Keep the product well inside the f32 → u16 range before rounding (constant bounds:
     // `clamp` cannot panic).
-    let i = current_a.clamp(-4.0, 4.0);
+    let i = (gain * current_a).clamp(-4.0, 4.0);
     round_clamp(
         f32::from(ADC_MID) + i * f32::from(ADC_COUNTS_PER_A) + offset + noise,
         ADC_COUNTS - 1,

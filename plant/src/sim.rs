@@ -440,7 +440,12 @@ impl Plant {
         let raw = SensorReadings {
             gear_pot: pot_counts(self.theta_g, s.pot_center_counts),
             link_encoder: encoder_counts(self.theta_l, s.encoder_zero_counts),
-            current_adc: adc_counts(self.current_a, s.current_offset_counts, noise),
+            current_adc: adc_counts(
+                self.current_a,
+                s.current_gain,
+                s.current_offset_counts,
+                noise,
+            ),
         };
         self.readings = self.faults.apply(raw, self.readings);
     }

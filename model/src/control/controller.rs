@@ -117,8 +117,13 @@ pub struct Controller {
     w_fb: i32,
     /// Filtered reference velocity, rad/s Q16.
     w_ref: i32,
-    /// Gear velocity estimate of the previous tick, rad/s Q16.
+    /// Filtered gear velocity of the previous tick (torque estimate), rad/s Q16.
     w_gear_prev: i32,
+    /// Motor current through the derivative filter (torque estimate), A Q16.
+    i_filtered: i32,
+    /// Side of the free play the beams last carried torque on: +1 (gear pushes the link
+    /// positive), −1, or 0 (not known yet).
+    contact: i8,
     /// Integrator, duty ‰ in Q32 (I32F32 bits).
     integ: i64,
     duty_prev: i16,
@@ -148,6 +153,8 @@ impl Controller {
             w_fb: 0,
             w_ref: 0,
             w_gear_prev: 0,
+            i_filtered: 0,
+            contact: 0,
             integ: 0,
             duty_prev: 0,
             defl_prev: 0,
@@ -207,6 +214,8 @@ impl Controller {
         self.w_fb = 0;
         self.w_ref = 0;
         self.w_gear_prev = 0;
+        self.i_filtered = 0;
+        self.contact = 0;
         self.integ = 0;
         self.duty_prev = 0;
         self.defl_valid = false;
@@ -252,11 +261,16 @@ impl Controller {
             .saturating_add(s.alpha.apply(w_gear.saturating_sub(self.w_fb)));
 
         // --- coupling torque estimate ---
-        // Current-based: motor torque minus the gear's inertial and viscous torque.
-        let dw = w_gear.saturating_sub(self.w_gear_prev);
-        self.w_gear_prev = w_gear;
+        // Current-based: motor torque minus the gear's inertial and viscous torque, both
+        // through the derivative filter F: an imperfect R or k_e makes the observer jump
+        // with every duty step, and J_g·Δω_g/dt of that jump is a torque no beam sees.
+        self.i_filtered = self
+            .i_filtered
+            .saturating_add(s.alpha.apply(current.saturating_sub(self.i_filtered)));
+        let dw = self.w_fb.saturating_sub(self.w_gear_prev);
+        self.w_gear_prev = self.w_fb;
         let tau_i =
-            s.kt.apply(current)
+            s.kt.apply(self.i_filtered)
                 .saturating_sub(s.gear_inertia_per_dt.apply(dw))
                 .saturating_sub(s.bv.apply(w_gear));
         let tau = match m.gear_pot {
@@ -326,6 +340,23 @@ impl Controller {
             hi = v;
             lo = v;
         }
+        // Free-play impacts: the beams last carried torque on side `contact`; current the
+        // other way drives the gear across the free play, and beyond the impact speed it
+        // would hit the link with more than τ_lim. Above that relative speed no more
+        // current that way (the zero-current duty is the back-EMF's).
+        if tau > s.contact_torque_q16 {
+            self.contact = 1;
+        } else if tau < -s.contact_torque_q16 {
+            self.contact = -1;
+        }
+        let closing = w_gear.saturating_sub(self.w_link);
+        let zero_current = emf.clamp(lo, hi);
+        if self.contact <= 0 && closing > s.impact_speed_q16 {
+            hi = hi.min(zero_current);
+        }
+        if self.contact >= 0 && closing < -s.impact_speed_q16 {
+            lo = lo.max(zero_current);
+        }
         // Braking governor (raw steps and other jumps of a stationary reference): when
         // the gear approaches the target faster than the available deceleration a_b can
         // stop it, ω_g² > 2·a_b·|e|, brake at the limit now instead of when the linear
@@ -355,12 +386,17 @@ impl Controller {
 
         // --- integrator: not further into a clamp ---
         // Outside the reference's count it integrates K_i·e. Inside, the link error is
-        // unmeasurable, but a creeping gear is not: it integrates −K_p·(ω_g − ṙ) (dead band of
-        // the observer's resolution), i.e. holds the gear where it is with the stiffness
-        // K_p, so an imperfect integrator value cannot let the link creep out of the count.
+        // unmeasurable, but a creeping gear is not: it integrates −K_p·(ω_g − ṙ), i.e. holds
+        // the gear where it is with the stiffness K_p, so an imperfect integrator value
+        // cannot let the link creep out of the count. Its dead band is the observer's
+        // resolution and bias bound (current offset, and R error × |i|): a hold that
+        // chased the bias of a warm motor under load hunted.
         let inc = if in_count {
             let slip = w_gear.saturating_sub(r.velocity_q16);
-            if slip.saturating_abs() <= s.w_deadband_q16 {
+            let dead_band = s
+                .w_deadband_q16
+                .saturating_add(s.w_bias_per_amp.apply(current.saturating_abs()));
+            if slip.saturating_abs() <= dead_band {
                 0
             } else {
                 -s.kp_dt.apply_wide(slip)

@@ -6,14 +6,16 @@
 //!
 //! 1. unwrap the link encoder (angle at the centre of the count) and read the current;
 //! 2. gear velocity from the back-EMF observer ω_g = (V − R·i)/k_e (no differentiation);
-//! 3. coupling torque: current-based, blended with the pot's deflection-based estimate by
-//!    inverse variance;
+//! 3. coupling torque: current-based (current and gear velocity through the derivative
+//!    filter, so that the observer's jump on a duty step is no torque), blended with the
+//!    pot's deflection-based estimate by inverse variance;
 //! 4. reference r, ṙ, r̈ from [`trajectory`];
 //! 5. error e = r − θ_l, zero while r lies in the measured encoder count;
 //! 6. feed-forward of the rigid inverse model, plus the free-play and compliance
 //!    compensation (a dead-zone inverse on the gear side);
 //! 7. PID with the derivative on the filtered gear velocity; integral separation, and a
-//!    gear hold inside the target count;
+//!    gear hold inside the target count (dead band: the observer's bias bound for a
+//!    current-sense offset and a warm motor's resistance);
 //! 8. braking governor for stationary references (ω_g² > 2·a_b·|e|);
 //! 9. clamps: current window about the back-EMF, beam-derived torque limit, duty limit,
 //!    with anti-windup.

@@ -15,7 +15,7 @@ use crate::beam::Setting;
 use crate::design::Design;
 use crate::dynamics::natural_frequency;
 use crate::sensors::{ADC_COUNTS_PER_A, POT_COUNTS, POT_SPAN_DEG};
-use crate::units::{Angle, Frequency, Stiffness, Torque};
+use crate::units::{Angle, Frequency, Inertia, Stiffness, Torque};
 
 /// Bandwidth schedule: ω_c = min(`BW_MAX`, ω_a / `BW_RATIO`), ω_a = √(k/J_link).
 pub const BW_RATIO: i32 = 5;
@@ -29,6 +29,18 @@ pub const BRAKE_FRACTION: I32F32 = I32F32::lit("0.5");
 /// Torque width over which the free-play compensation switches sides, N·m (≈ the gear
 /// train's dry friction).
 pub const FREE_PLAY_SWITCH_NM: I32F32 = I32F32::lit("0.1");
+/// Armature-resistance error the back-EMF observer's dead bands allow for, as a fraction
+/// of the configured R: copper from cold to hot (+40 %, design.md §9). With R off by ΔR
+/// the observer reads ω_g + ΔR·i/k_e.
+pub const RESISTANCE_TOLERANCE: I32F32 = I32F32::lit("0.4");
+/// Current-sense offset the observer's dead bands allow for, ADC counts (what
+/// calibration leaves, design.md §9); plus 1.5 counts of resolution.
+pub const CURRENT_OFFSET_TOLERANCE_COUNTS: i32 = 20;
+/// Fraction of the elastic impact speed (`impact_speed`) the free-play impact limit lets
+/// the gear reach: the observer and the link velocity lag, and the gear is still driven
+/// while the beams take up the impact. Measured on the acceptance grid (250 nominal
+/// cases): 1.0 leaves 17 runs above σ_allow, 0.6 leaves 6.
+pub const IMPACT_SPEED_FRACTION: I32F32 = I32F32::lit("0.6");
 
 /// The per-tick constants of one configuration (all divisions done).
 ///
@@ -56,8 +68,19 @@ pub struct Schedule {
     pub(crate) int_band_q16: i32,
     /// Kp·dt, ‰ per rad/s of gear velocity per tick (gear hold inside the target count).
     pub(crate) kp_dt: Gain,
-    /// Dead band of the gear velocity for the gear hold, rad/s Q16 (1.5 ADC counts).
+    /// Dead band of the gear velocity for the gear hold at zero current, rad/s Q16: the
+    /// observer's resolution (1.5 ADC counts) and its bias from a current-sense offset
+    /// (`CURRENT_OFFSET_TOLERANCE_COUNTS`), R·(1.5 + 20)/(1024·k_e).
     pub(crate) w_deadband_q16: i32,
+    /// Growth of that dead band with |i|: the observer's bias from a resistance error,
+    /// `RESISTANCE_TOLERANCE`·R/k_e, rad/s per A.
+    pub(crate) w_bias_per_amp: Gain,
+    /// Gear speed relative to the link above which the current may not drive the gear
+    /// further across the free play (impact torque τ_lim, see `impact_speed`), rad/s Q16.
+    pub(crate) impact_speed_q16: i32,
+    /// |τ̂| above which the beams are taken to be in contact on the side of τ̂'s sign,
+    /// N·m Q16 (half `FREE_PLAY_SWITCH_NM`).
+    pub(crate) contact_torque_q16: i32,
     pub(crate) kd: Gain,
     /// Derivative filter coefficient α = dt/(τ_f + dt), Q16.
     pub(crate) alpha: Gain,
@@ -216,6 +239,20 @@ fn current_limit(
     })
 }
 
+/// The gear's speed relative to the link at which crossing the free play and hitting the
+/// link gives an impact torque of τ_lim: two masses closing at v on a spring k meet with
+/// a peak torque v·√(k·J_eff), J_eff = J_g·J_l/(J_g + J_l), so v = τ_lim/(J_eff·ω_eff),
+/// ω_eff = √(k/J_eff), rad/s.
+fn impact_speed(p: &Drive, k: Stiffness, tau_lim: I64F64) -> Result<I64F64, ControlError> {
+    let j_eff = div(mul(p.j_gear, p.j_link)?, p.j)?; // kg·m²
+    let j_eff_mm2 = mul(j_eff, I64F64::from_num(1_000_000))?;
+    let j_eff_inertia = Inertia::from_bits(
+        i64::try_from(j_eff_mm2.to_bits() >> 32).map_err(|_| ControlError::Overflow)?,
+    );
+    let w_eff = wide(natural_frequency(k, j_eff_inertia)?.get());
+    div(tau_lim, mul(j_eff, w_eff)?)
+}
+
 /// Weight of the deflection-based torque estimate, w = σ_i²/(σ_i² + σ_d²): one pot count
 /// q_pot = 300°/1024 of gear angle gives σ_d = k·q_pot/√12; σ_i is configured.
 fn deflection_weight(k: I64F64, current_sigma: Torque) -> Result<I64F64, ControlError> {
@@ -277,9 +314,15 @@ impl Schedule {
                 i32::MAX
             },
             w_deadband_q16: to_q16(div(
-                mul(r, I64F64::from_num(3))?,
+                mul(r, I64F64::from_num(3 + 2 * CURRENT_OFFSET_TOLERANCE_COUNTS))?,
                 mul(ke, I64F64::from_num(2 * i32::from(ADC_COUNTS_PER_A)))?,
             )?)?,
+            w_bias_per_amp: to_gain(div(mul(wide(RESISTANCE_TOLERANCE), r)?, ke)?)?,
+            impact_speed_q16: to_q16(mul(
+                impact_speed(&p, stiffness, tau_lim)?,
+                wide(IMPACT_SPEED_FRACTION),
+            )?)?,
+            contact_torque_q16: to_q16(wide(FREE_PLAY_SWITCH_NM) / 2)?,
             kd: to_gain(wide(gains.kd))?,
             alpha: to_gain(alpha)?,
             ff_vel: to_gain(mul(duty_per_volt, add(ke, div(mul(r, bv)?, kt)?)?)?)?,

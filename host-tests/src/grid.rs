@@ -1,0 +1,423 @@
+//! The acceptance grid of the position controller: seeded random cases over clutch
+//! length, link inertia, load, command and (optionally) an off-nominal actuator, each run
+//! in closed loop on the simulated actuator, judged against the limits below, with the
+//! worst case of every metric kept.
+//!
+//! The time-optimal bound is computed here on its own, in f64, from the *true* actuator of
+//! the case (design.md §10): the rigid body J = J_g + J_l, accelerating at full voltage
+//! (motor current ≤ i_max) and braking at the current limit, the link's acceleration
+//! bounded by 0.85·τ_cap(L)/J_l.
+
+use std::f64::consts::PI;
+use std::fmt;
+
+use model::control::{ClutchSetting, Command, Config};
+use model::supervisor::FaultCode;
+use model::{Angle, Inertia, Length};
+use plant::harness::{self, Metrics, Scenario};
+use plant::overrides::{Override, Overrides, Param, Value};
+use proptest::prelude::*;
+use proptest::strategy::ValueTree;
+use proptest::test_runner::{Config as RunnerConfig, RngAlgorithm, TestRng, TestRunner};
+
+/// Overshoot limit, % of the commanded change.
+pub const OVERSHOOT_MAX_PCT: f64 = 5.0;
+/// Settling limit (±1 count), s, unless 1.5× the time-optimal bound is longer.
+pub const SETTLE_MAX_S: f64 = 0.4;
+/// Raw steps settle within this multiple of the time-optimal bound.
+pub const RAW_STEP_BOUND_FACTOR: f64 = 1.5;
+/// Steady-state error limit over the last 500 ms, counts.
+pub const STEADY_ERROR_MAX_COUNTS: f64 = 1.0;
+/// Link count span at rest over the last 500 ms, counts.
+pub const COUNT_SPAN_MAX: i32 = 1;
+/// Duty span at rest over the last 500 ms, ‰.
+pub const DUTY_SPAN_MAX: i32 = 20;
+/// Peak beam stress limit, × σ_allow.
+pub const STRESS_MAX_RATIO: f64 = 1.0;
+
+/// The paper preset's beams (design.md §2.2), SI.
+const BEAMS: f64 = 4.0;
+const PITCH_RADIUS_M: f64 = 7.8e-3;
+const BEAM_RADIUS_M: f64 = 0.5e-3;
+const SIGMA_ALLOW_PA: f64 = 1.5e9;
+/// The controller's default torque margin on τ_cap.
+const TORQUE_MARGIN: f64 = 0.85;
+/// The controller's default motor current limit, A.
+const CURRENT_LIMIT_A: f64 = 1.5;
+
+/// The actuator the time-optimal bound is computed for, SI.
+#[derive(Clone, Copy, Debug)]
+pub struct RigidActuator {
+    /// Supply, V.
+    pub supply_v: f64,
+    /// Armature resistance, Ω.
+    pub resistance_ohm: f64,
+    /// Torque constant at the output, N·m/A.
+    pub torque_constant: f64,
+    /// Back-EMF constant at the output, V·s/rad.
+    pub back_emf: f64,
+    /// Gear inertia at the output, kg·m².
+    pub gear_inertia: f64,
+    /// Link inertia, kg·m².
+    pub link_inertia: f64,
+    /// Motor current limit, A.
+    pub current_limit_a: f64,
+    /// Coupling torque limit, N·m.
+    pub torque_limit_nm: f64,
+}
+
+/// Stress-limited capacity of the paper preset's beams at clutch length `l_m`,
+/// τ_cap = n·R·σ_allow·π·r³/(4·L) (design.md §10), N·m.
+#[must_use]
+pub fn torque_capacity(l_m: f64) -> f64 {
+    BEAMS * PITCH_RADIUS_M * SIGMA_ALLOW_PA * PI * BEAM_RADIUS_M.powi(3) / (4.0 * l_m)
+}
+
+impl RigidActuator {
+    /// The AX-12A-class actuator of design.md §3 with link inertia `j_l` at clutch
+    /// length `l_m` (the controller's default limits: 1.5 A, 0.85·τ_cap).
+    #[must_use]
+    pub fn nominal(j_l: f64, l_m: f64) -> RigidActuator {
+        RigidActuator {
+            supply_v: 12.0,
+            resistance_ohm: 8.0,
+            torque_constant: 1.0,
+            back_emf: 1.94,
+            gear_inertia: 3.2e-3,
+            link_inertia: j_l,
+            current_limit_a: CURRENT_LIMIT_A,
+            torque_limit_nm: TORQUE_MARGIN * torque_capacity(l_m),
+        }
+    }
+
+    /// Time-optimal rest-to-rest move over `h` rad, s: full voltage (current-limited)
+    /// until the remaining distance equals the braking distance at the current limit,
+    /// then brake; the link's acceleration never exceeds τ_lim/J_l. Integrated with a
+    /// 1 µs step (error well below 0.1 ms).
+    #[must_use]
+    pub fn time_optimal_s(&self, h: f64) -> f64 {
+        let h = h.abs();
+        let j = self.gear_inertia + self.link_inertia;
+        let a_link = self.torque_limit_nm / self.link_inertia;
+        let a_brake = (self.torque_constant * self.current_limit_a / j).min(a_link);
+        let dt = 1e-6;
+        let (mut theta, mut w, mut t) = (0.0f64, 0.0f64, 0.0f64);
+        while h - theta > w * w / (2.0 * a_brake) {
+            let i = ((self.supply_v - self.back_emf * w) / self.resistance_ohm)
+                .min(self.current_limit_a);
+            let a = (self.torque_constant * i / j).min(a_link);
+            w += a * dt;
+            theta += w * dt;
+            t += dt;
+        }
+        t + w / a_brake
+    }
+}
+
+/// What a case commands.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Motion {
+    /// A raw step of this many rad.
+    Step(f64),
+    /// A minimum-jerk move of this many rad in this many ms.
+    Move(f64, u32),
+}
+
+impl Motion {
+    /// The commanded change, rad.
+    #[must_use]
+    pub fn size(self) -> f64 {
+        match self {
+            Motion::Step(h) | Motion::Move(h, _) => h,
+        }
+    }
+}
+
+/// One case of the grid.
+#[derive(Clone, Copy, Debug)]
+pub struct Case {
+    /// Clutch length, µm.
+    pub clutch_um: i64,
+    /// Configured (and, unless overridden, true) link inertia, kg·m².
+    pub link_inertia: f64,
+    /// Constant load on the link, N·m.
+    pub load_nm: f64,
+    /// The command.
+    pub motion: Motion,
+    /// The simulated actuator's deviations from the nominal one.
+    pub plant: Overrides,
+}
+
+impl fmt::Display for Case {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "L {:.3} mm, J_l {:.2e} kg·m², load {:+.3} N·m, ",
+            self.clutch_um as f64 / 1000.0,
+            self.link_inertia,
+            self.load_nm
+        )?;
+        match self.motion {
+            Motion::Step(h) => write!(f, "raw step {h:+.3} rad")?,
+            Motion::Move(h, ms) => write!(f, "min-jerk {h:+.3} rad in {ms} ms")?,
+        }
+        for o in self.plant.iter() {
+            match o.value {
+                Value::Absolute(v) => write!(f, ", {}={v}{}", o.param.name(), o.param.unit())?,
+                Value::Factor(x) => write!(f, ", {}=x{x:.3}", o.param.name())?,
+            }
+        }
+        Ok(())
+    }
+}
+
+fn rad(v: f64) -> Angle {
+    Angle::from_micro((v * 1e6).round() as i64).unwrap_or(Angle::ZERO)
+}
+
+impl Case {
+    /// The scenario: paper preset, hold 0.5 s with the load, command, run 2 s.
+    #[must_use]
+    pub fn scenario(&self) -> Scenario {
+        let mut cfg = Config::paper(Length::from_int(3));
+        cfg.clutch = ClutchSetting::Length(
+            Length::from_micro(self.clutch_um * 1000).unwrap_or(Length::from_int(3)),
+        );
+        cfg.link_inertia = Inertia::from_micro((self.link_inertia * 1e12).round() as i64)
+            .unwrap_or(cfg.link_inertia);
+        let command = match self.motion {
+            Motion::Step(h) => Command::Step { target: rad(h) },
+            Motion::Move(h, ms) => Command::Move {
+                target: rad(h),
+                duration_ms: ms,
+            },
+        };
+        let mut sc = Scenario::new(cfg, command);
+        sc.load_nm = self.load_nm as f32;
+        sc.plant = self.plant;
+        sc
+    }
+
+    /// The true actuator (nominal with the overrides) for the time-optimal bound.
+    #[must_use]
+    pub fn rigid(&self) -> RigidActuator {
+        let mut a = RigidActuator::nominal(self.link_inertia, self.clutch_um as f64 * 1e-6);
+        let pc = self.plant.apply(&{
+            let mut pc = plant::PlantConfig::default();
+            pc.link.inertia_kg_m2 = self.link_inertia as f32;
+            pc
+        });
+        a.supply_v = f64::from(pc.motor.supply_voltage_v);
+        a.resistance_ohm = f64::from(pc.motor.resistance_ohm);
+        a.torque_constant = f64::from(pc.motor.torque_constant_nm_per_a);
+        a.back_emf = f64::from(pc.motor.back_emf_v_s_per_rad);
+        a.gear_inertia = f64::from(pc.motor.inertia_kg_m2);
+        a.link_inertia = f64::from(pc.link.inertia_kg_m2);
+        a
+    }
+}
+
+/// The off-nominal ranges of the acceptance (design.md §9): factors of the nominal
+/// value, or absolute offsets in counts.
+pub const OFF_NOMINAL: [(Param, f64, f64, bool); 11] = [
+    (Param::Resistance, 0.8, 1.4, true),
+    (Param::TorqueConstant, 0.9, 1.1, true),
+    (Param::BackEmf, 0.9, 1.1, true),
+    (Param::GearInertia, 0.8, 1.25, true),
+    (Param::GearFriction, 0.5, 3.0, true),
+    (Param::Supply, 10.5, 12.6, false),
+    (Param::CurrentOffset, -20.0, 20.0, false),
+    (Param::CurrentGain, 0.95, 1.05, false),
+    (Param::PotOffset, -3.0, 3.0, false),
+    (Param::LinkInertia, 0.5, 3.0, true),
+    (Param::LinkFriction, 0.0, 0.0, false),
+];
+
+/// Peak gear speed a minimum-jerk move may ask for, rad/s (below the no-load speed 6.2).
+const MOVE_PEAK_SPEED: f64 = 4.5;
+/// Shortest and longest minimum-jerk move, ms.
+const MOVE_MS: (f64, f64) = (150.0, 300.0);
+
+fn case_strategy(off_nominal: bool) -> impl Strategy<Value = Case> {
+    let base = (
+        1000i64..=8000,
+        (0.3e-3f64).ln()..=(5e-3f64).ln(),
+        prop_oneof![1 => Just(0.0), 3 => -0.3f64..=0.3],
+        0.05f64..=0.6,
+        any::<bool>(),
+        any::<bool>(),
+        0.0f64..=1.0,
+    );
+    let plant = proptest::collection::vec(0.0f64..=1.0, OFF_NOMINAL.len());
+    (base, plant).prop_map(move |((l, lnj, load, h, neg, raw, d), u)| {
+        let h = if neg { -h } else { h };
+        let motion = if raw {
+            Motion::Step(h)
+        } else {
+            let lo = MOVE_MS.0.max(1000.0 * 1.875 * h.abs() / MOVE_PEAK_SPEED);
+            let ms = lo + d * (MOVE_MS.1 - lo).max(0.0);
+            Motion::Move(h, ms.round() as u32)
+        };
+        let mut plant = Overrides::NONE;
+        if off_nominal {
+            for ((param, lo, hi, factor), u) in OFF_NOMINAL.iter().zip(u) {
+                if lo == hi && *lo == 0.0 {
+                    continue;
+                }
+                let v = (lo + u * (hi - lo)) as f32;
+                plant.set(Override {
+                    param: *param,
+                    value: if *factor {
+                        Value::Factor(v)
+                    } else {
+                        Value::Absolute(v)
+                    },
+                });
+            }
+        }
+        Case {
+            clutch_um: l,
+            link_inertia: lnj.exp(),
+            load_nm: load,
+            motion,
+            plant,
+        }
+    })
+}
+
+/// `n` cases drawn with `seed` (the same seed gives the same cases).
+#[must_use]
+pub fn cases(n: usize, seed: u64, off_nominal: bool) -> Vec<Case> {
+    let mut bytes = [0u8; 32];
+    bytes[..8].copy_from_slice(&seed.to_le_bytes());
+    let mut runner = TestRunner::new_with_rng(
+        RunnerConfig::default(),
+        TestRng::from_seed(RngAlgorithm::ChaCha, &bytes),
+    );
+    let s = case_strategy(off_nominal);
+    (0..n)
+        .filter_map(|_| s.new_tree(&mut runner).ok().map(|t| t.current()))
+        .collect()
+}
+
+/// The judged figures of one case.
+#[derive(Clone, Copy, Debug)]
+pub struct Outcome {
+    /// The case.
+    pub case: Case,
+    /// Its index in the draw.
+    pub index: usize,
+    /// The harness metrics.
+    pub metrics: Metrics,
+    /// Time-optimal bound of the true actuator for the step size, s.
+    pub t_opt_s: f64,
+    /// Settling limit for this case, s.
+    pub settle_limit_s: f64,
+}
+
+impl Outcome {
+    /// Settling time (∞ if never), s.
+    #[must_use]
+    pub fn settle_s(&self) -> f64 {
+        self.metrics.settling_time_s.unwrap_or(f64::INFINITY)
+    }
+
+    /// Each metric: (name, value, limit, met).
+    #[must_use]
+    pub fn figures(&self) -> [(&'static str, f64, f64, bool); 10] {
+        let m = &self.metrics;
+        let settle_ratio = self.settle_s() / self.settle_limit_s;
+        let faults = f64::from(m.faults.0.count_ones());
+        let false_trip =
+            !m.faults.is_empty() && m.peak_stress_before_fault_pa <= m.allowable_stress_pa;
+        [
+            (
+                "overshoot %",
+                m.overshoot_pct,
+                OVERSHOOT_MAX_PCT,
+                m.overshoot_pct <= OVERSHOOT_MAX_PCT,
+            ),
+            ("settling / limit", settle_ratio, 1.0, settle_ratio <= 1.0),
+            (
+                "steady-state error counts",
+                m.steady_state_error_counts,
+                STEADY_ERROR_MAX_COUNTS,
+                m.steady_state_error_counts <= STEADY_ERROR_MAX_COUNTS,
+            ),
+            (
+                "rest count span",
+                f64::from(m.steady_count_span),
+                f64::from(COUNT_SPAN_MAX),
+                m.steady_count_span <= COUNT_SPAN_MAX,
+            ),
+            (
+                "rest duty span ‰",
+                f64::from(m.steady_duty_span),
+                f64::from(DUTY_SPAN_MAX),
+                m.steady_duty_span <= DUTY_SPAN_MAX,
+            ),
+            (
+                "peak stress / σ_allow",
+                m.peak_stress_ratio,
+                STRESS_MAX_RATIO,
+                m.peak_stress_ratio <= STRESS_MAX_RATIO,
+            ),
+            ("faults latched", faults, 0.0, m.faults.is_empty()),
+            (
+                "false trips (stress < σ_allow)",
+                f64::from(u8::from(false_trip)),
+                0.0,
+                !false_trip,
+            ),
+            (
+                "stress after a trip / σ_allow",
+                m.peak_stress_after_fault_pa / m.allowable_stress_pa,
+                STRESS_MAX_RATIO,
+                m.peak_stress_after_fault_pa <= STRESS_MAX_RATIO * m.allowable_stress_pa,
+            ),
+            (
+                "raw-step settling / T_opt",
+                if matches!(self.case.motion, Motion::Step(_)) {
+                    self.settle_s() / self.t_opt_s
+                } else {
+                    0.0
+                },
+                RAW_STEP_BOUND_FACTOR,
+                !matches!(self.case.motion, Motion::Step(_))
+                    || self.settle_s() <= RAW_STEP_BOUND_FACTOR * self.t_opt_s,
+            ),
+        ]
+    }
+}
+
+/// Runs one case.
+///
+/// # Panics
+/// If the controller rejects the case (a bug of the grid).
+#[must_use]
+pub fn run(index: usize, case: &Case) -> Outcome {
+    let metrics = harness::run(&case.scenario(), |_| {}).expect("grid case accepted");
+    let t_opt_s = case.rigid().time_optimal_s(case.motion.size());
+    Outcome {
+        case: *case,
+        index,
+        metrics,
+        t_opt_s,
+        settle_limit_s: SETTLE_MAX_S.max(RAW_STEP_BOUND_FACTOR * t_opt_s),
+    }
+}
+
+/// Names of the faults latched in a run.
+#[must_use]
+pub fn fault_names(m: &Metrics) -> String {
+    let v: Vec<&str> = FaultCode::ALL
+        .iter()
+        .filter(|c| m.faults.contains(**c))
+        .map(|c| c.name())
+        .collect();
+    if v.is_empty() {
+        "none".into()
+    } else {
+        v.join(",")
+    }
+}
