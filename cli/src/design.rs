@@ -1,4 +1,4 @@
-//! `vsa design`: the design calculator (design.md §2).
+//! `vsa design`: the design calculator (docs/design.md §2).
 //!
 //! Parses the design (paper preset unless overridden), lets [`model::Design::new`] validate
 //! it, computes a [`Report`] with the model crate, then renders it as a table or as JSON.
@@ -95,12 +95,12 @@ pub struct BeamArgs {
 
 /// Stiffness, deflection, stress, capacity and backlash of a beam design.
 ///
-/// Defaults are the paper preset (design.md §2.2). Values take units: lengths `0.5mm`,
+/// Defaults are the paper preset (docs/design.md §2.2). Values take units: lengths `0.5mm`,
 /// `500um`, `8e-3m`; moduli and stresses `200GPa`, `1500MPa`, `80e9Pa`; torques `2Nm`,
 /// `300mNm`, `2N*m`; stiffness `500Nm/rad`.
 #[derive(Args, Debug, Default)]
 #[command(
-    after_help = "Defaults: the paper preset (design.md §2.2). Values need units: \
+    after_help = "Defaults: the paper preset (docs/design.md §2.2). Values need units: \
 lengths 0.5mm, 500um, 8e-3m; moduli and stresses 200GPa, 1500MPa, 80e9Pa; torques 2Nm, \
 300mNm, 2N*m; stiffness 500Nm/rad.\n\nBad input: one line on stderr, exit code 2."
 )]
@@ -631,7 +631,7 @@ pub fn header(d: &Design) -> String {
     let mut s = format!(
         "Design{}\n",
         if preset {
-            " (paper preset, design.md §2.2)"
+            " (paper preset, docs/design.md §2.2)"
         } else {
             ""
         }

@@ -665,7 +665,7 @@ struct JsonFound {
 }
 
 /// The shortest active length with which beams of `m` can meet the capacity and deflection
-/// goals at once, whatever n, r and R (packed side by side, n → ∞; design.md §10):
+/// goals at once, whatever n, r and R (packed side by side, n → ∞; docs/design.md §10):
 /// L³ = 36·T·E²·θ²/(π²·σ³), m.
 fn min_active_length(m: &Material, g: &Goals) -> f64 {
     let e = f(m.youngs_modulus.get()) * 1e6;

@@ -3,7 +3,7 @@
 //! Formatting only: every number handed in here was computed by the model crate; the host
 //! converts its fixed-point value to f64 for printing.
 
-/// The placeholder for a quantity outside its domain (design.md §6 "Tables and JSON").
+/// The placeholder for a quantity outside its domain (docs/design.md §6 "Tables and JSON").
 pub const NONE: &str = "–";
 
 /// `x` with `n` significant digits (never fewer integer digits than `x` has), fixed

@@ -11,7 +11,7 @@
 use host_tests::oracle::{self, TwoMass};
 use serde_json::Value;
 
-/// Gear-side inertia at the output, design.md §3 (rotor 5e-8 kg·m² × 254²).
+/// Gear-side inertia at the output, docs/design.md §3 (rotor 5e-8 kg·m² × 254²).
 const J_GEAR: f64 = 3.2e-3;
 
 mod common;
@@ -31,7 +31,7 @@ fn rel(got: f64, want: f64) -> f64 {
 }
 
 fn two_mass(k: f64, j_link: f64, load: f64) -> TwoMass {
-    // design.md §3 (AX-12A at the output); viscous friction: the controller's motor
+    // docs/design.md §3 (AX-12A at the output); viscous friction: the controller's motor
     // parameters (1e-3 N·m·s/rad) and the simulated link bearing (2e-4).
     TwoMass {
         j_gear: J_GEAR,

@@ -1,4 +1,4 @@
-//! `vsa design` end to end: the built binary against design.md §2.2 and the model crate.
+//! `vsa design` end to end: the built binary against docs/design.md §2.2 and the model crate.
 
 use std::collections::BTreeSet;
 use std::process::{Command, Output};
@@ -73,7 +73,7 @@ fn paper_table_matches_design_md() {
     let out = ok_stdout(&[]);
     let rows = rows(&out);
     assert_eq!(rows.len(), 5, "{out}");
-    // design.md §2.2: L, k, k_T, θ (°), σ (MPa), τ_cap.
+    // docs/design.md §2.2: L, k, k_T, θ (°), σ (MPa), τ_cap.
     let want = [
         (1.0, 7167.5, 4680.8, 0.0160, 653.0, 4.59),
         (2.0, 895.9, 790.9, 0.128, 1306.0, 2.30),

@@ -142,7 +142,7 @@ fn figures_write_svg_png_and_csv_with_model_values() {
         1e-4
     ));
 
-    // Fig. 6: 3 radii × 141 lengths; at L = 5 mm: 2.00° / 0.125° / 0.0247° (design.md §2.2).
+    // Fig. 6: 3 radii × 141 lengths; at L = 5 mm: 2.00° / 0.125° / 0.0247° (docs/design.md §2.2).
     let fig6 = Csv::read(&out_dir.join("fig6_deflection.csv"));
     assert_eq!(fig6.rows.len(), 3 * 141);
     let at5 = fig6.rows_where("length_mm", 5.0);
@@ -383,7 +383,7 @@ fn check_energy_per_cycle(out_dir: &Path, d: &Design) {
             assert!(close(v(c), want, 0.05), "{key}_{c} = {} vs {want}", v(c));
         }
     }
-    // The rigid figures themselves (hand calculation, design.md §3 motor): at 1 Hz the
+    // The rigid figures themselves (hand calculation, docs/design.md §3 motor): at 1 Hz the
     // load's holding current dominates, 8 Ω·(0.2 A)²·1 s = 0.32 J of 0.343 J.
     assert!(close(rigid_body_cycle(1.0, 0.2).0, 0.3427, 1e-3));
     assert!(close(rigid_body_cycle(3.0, 0.2).0, 0.2469, 1e-3));

@@ -4,7 +4,7 @@
 //! worst case of every metric kept.
 //!
 //! The time-optimal bound is computed here on its own, in f64, from the *true* actuator of
-//! the case (design.md §10): the rigid body J = J_g + J_l, accelerating at full voltage
+//! the case (docs/design.md §10): the rigid body J = J_g + J_l, accelerating at full voltage
 //! (motor current ≤ i_max) and braking at the current limit, the link's acceleration
 //! bounded by 0.85·τ_cap(L)/J_l.
 
@@ -35,7 +35,7 @@ pub const DUTY_SPAN_MAX: i32 = 20;
 /// Peak beam stress limit, × σ_allow.
 pub const STRESS_MAX_RATIO: f64 = 1.0;
 
-/// The paper preset's beams (design.md §2.2), SI.
+/// The paper preset's beams (docs/design.md §2.2), SI.
 const BEAMS: f64 = 4.0;
 const PITCH_RADIUS_M: f64 = 7.8e-3;
 const BEAM_RADIUS_M: f64 = 0.5e-3;
@@ -67,14 +67,14 @@ pub struct RigidActuator {
 }
 
 /// Stress-limited capacity of the paper preset's beams at clutch length `l_m`,
-/// τ_cap = n·R·σ_allow·π·r³/(4·L) (design.md §10), N·m.
+/// τ_cap = n·R·σ_allow·π·r³/(4·L) (docs/design.md §10), N·m.
 #[must_use]
 pub fn torque_capacity(l_m: f64) -> f64 {
     BEAMS * PITCH_RADIUS_M * SIGMA_ALLOW_PA * PI * BEAM_RADIUS_M.powi(3) / (4.0 * l_m)
 }
 
 impl RigidActuator {
-    /// The AX-12A-class actuator of design.md §3 with link inertia `j_l` at clutch
+    /// The AX-12A-class actuator of docs/design.md §3 with link inertia `j_l` at clutch
     /// length `l_m` (the controller's default limits: 1.5 A, 0.85·τ_cap).
     #[must_use]
     pub fn nominal(j_l: f64, l_m: f64) -> RigidActuator {
@@ -217,7 +217,7 @@ impl Case {
     }
 }
 
-/// The off-nominal ranges of the acceptance (design.md §9): factors of the nominal
+/// The off-nominal ranges of the acceptance (docs/design.md §9): factors of the nominal
 /// value, or absolute offsets in counts.
 pub const OFF_NOMINAL: [(Param, f64, f64, bool); 11] = [
     (Param::Resistance, 0.8, 1.4, true),

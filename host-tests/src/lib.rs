@@ -1,4 +1,4 @@
-//! Host-side test support for vsa: an f64 oracle written from `design.md`, independent of
+//! Host-side test support for vsa: an f64 oracle written from `docs/design.md`, independent of
 //! the fixed-point code in `model`.
 #![forbid(unsafe_code)]
 

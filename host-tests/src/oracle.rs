@@ -1,6 +1,6 @@
-//! An independent f64 reference ("oracle") of the beam mechanics in `design.md` §2.
+//! An independent f64 reference ("oracle") of the beam mechanics in `docs/design.md` §2.
 //!
-//! Written straight from the formulas in `design.md` §2, §2.1 and §2.2, in plain `f64` and
+//! Written straight from the formulas in `docs/design.md` §2, §2.1 and §2.2, in plain `f64` and
 //! SI units throughout: metres, pascals, newtons, newton-metres, radians, kilogram square
 //! metres, joules. It deliberately does not use the fixed-point `model` crate: tests compare
 //! the two, so they must not share code.
@@ -43,7 +43,7 @@ impl fmt::Display for DomainError {
 
 impl std::error::Error for DomainError {}
 
-/// Beam geometry and material of one actuator design (`design.md` §2, symbols paragraph).
+/// Beam geometry and material of one actuator design (`docs/design.md` §2, symbols paragraph).
 /// All fields in SI units.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Design {
@@ -68,7 +68,7 @@ pub struct Design {
 }
 
 impl Design {
-    /// The reference design, `design.md` §2.2 ("paper preset"): n = 4, r = 0.5 mm,
+    /// The reference design, `docs/design.md` §2.2 ("paper preset"): n = 4, r = 0.5 mm,
     /// R = 7.8 mm, E = 200 GPa, G = 80 GPa, σ_allow = 1.5 GPa, l = 8 mm, t_c = 1 mm, μ = 0.4.
     pub fn paper() -> Self {
         Design {
@@ -89,37 +89,37 @@ impl Design {
         f64::from(self.n)
     }
 
-    /// Second moment of area of one beam, I = π·r⁴/4 \[m⁴\] (`design.md` §2 table, row "–
+    /// Second moment of area of one beam, I = π·r⁴/4 \[m⁴\] (`docs/design.md` §2 table, row "–
     /// second moment of area").
     pub fn second_moment(&self) -> f64 {
         PI * self.r.powi(4) / 4.0
     }
 
-    /// Cross-section area of one beam, A = π·r² \[m²\] (`design.md` §2 table, row 4T).
+    /// Cross-section area of one beam, A = π·r² \[m²\] (`docs/design.md` §2 table, row 4T).
     pub fn area(&self) -> f64 {
         PI * self.r * self.r
     }
 
-    /// Poisson's ratio from E and G, ν = E/(2G) − 1 \[-\] (`design.md` §2 table, row 4T).
+    /// Poisson's ratio from E and G, ν = E/(2G) − 1 \[-\] (`docs/design.md` §2 table, row 4T).
     pub fn poisson(&self) -> f64 {
         self.e / (2.0 * self.g) - 1.0
     }
 
     /// Timoshenko shear coefficient of a circular section, κ = 6(1+ν)/(7+6ν) \[-\]
-    /// (`design.md` §2 table, row 4T).
+    /// (`docs/design.md` §2 table, row 4T).
     pub fn shear_coefficient(&self) -> f64 {
         let nu = self.poisson();
         6.0 * (1.0 + nu) / (7.0 + 6.0 * nu)
     }
 
     /// Joint stiffness, Euler–Bernoulli: k(L) = n·3·E·I·R²/L³ \[N·m/rad\], L in m
-    /// (`design.md` §2 table, row 4; paper eq. 4). L = 0 gives +∞ (rigid).
+    /// (`docs/design.md` §2 table, row 4; paper eq. 4). L = 0 gives +∞ (rigid).
     pub fn stiffness(&self, l_act: f64) -> f64 {
         self.nf() * 3.0 * self.e * self.second_moment() * self.pitch_r.powi(2) / l_act.powi(3)
     }
 
     /// Joint stiffness, shear-corrected (Timoshenko):
-    /// k_T(L) = n·R² / (L³/(3EI) + L/(κ·G·A)) \[N·m/rad\], L in m (`design.md` §2 table,
+    /// k_T(L) = n·R² / (L³/(3EI) + L/(κ·G·A)) \[N·m/rad\], L in m (`docs/design.md` §2 table,
     /// row 4T).
     pub fn stiffness_timoshenko(&self, l_act: f64) -> f64 {
         let bending = l_act.powi(3) / (3.0 * self.e * self.second_moment());
@@ -128,44 +128,44 @@ impl Design {
     }
 
     /// Joint rotation under output torque τ \[N·m\], θ = τ/k(L) \[rad\], Euler–Bernoulli
-    /// (`design.md` §2 table, rows 2,3 and 4).
+    /// (`docs/design.md` §2 table, rows 2,3 and 4).
     pub fn deflection(&self, tau: f64, l_act: f64) -> f64 {
         tau / self.stiffness(l_act)
     }
 
     /// Tip force on each beam for output torque τ \[N·m\], P = τ/(n·R) \[N\]
-    /// (`design.md` §2 table, row "per-beam force, root stress"; paper eq. 2).
+    /// (`docs/design.md` §2 table, row "per-beam force, root stress"; paper eq. 2).
     pub fn beam_force(&self, tau: f64) -> f64 {
         tau / (self.nf() * self.pitch_r)
     }
 
     /// Bending stress at the beam root for output torque τ \[N·m\] at active length L \[m\],
-    /// σ = P·L·r/I \[Pa\] (`design.md` §2 table, row "per-beam force, root stress").
+    /// σ = P·L·r/I \[Pa\] (`docs/design.md` §2 table, row "per-beam force, root stress").
     pub fn root_stress(&self, tau: f64, l_act: f64) -> f64 {
         self.beam_force(tau) * l_act * self.r / self.second_moment()
     }
 
     /// Stress-limited torque capacity, τ_cap(L) = n·R·σ_allow·I/(r·L) \[N·m\]
-    /// (`design.md` §2 table, row "stress-limited capacity").
+    /// (`docs/design.md` §2 table, row "stress-limited capacity").
     pub fn torque_capacity(&self, l_act: f64) -> f64 {
         self.nf() * self.pitch_r * self.sigma_allow * self.second_moment() / (self.r * l_act)
     }
 
     /// Stress-limited deflection capacity, θ_cap(L) = τ_cap(L)/k(L) \[rad\]
-    /// (`design.md` §2 table, row "stress-limited capacity").
+    /// (`docs/design.md` §2 table, row "stress-limited capacity").
     pub fn deflection_capacity(&self, l_act: f64) -> f64 {
         self.torque_capacity(l_act) / self.stiffness(l_act)
     }
 
     /// Inverse of the Euler–Bernoulli stiffness, L(k) = (n·3·E·I·R²/k)^(1/3) \[m\], k in
-    /// N·m/rad (`design.md` §2 table, row "– inverse"). Error unless k is finite and > 0.
+    /// N·m/rad (`docs/design.md` §2 table, row "– inverse"). Error unless k is finite and > 0.
     pub fn length_for_stiffness(&self, k: f64) -> Result<f64, DomainError> {
         check_stiffness(k)?;
         Ok((self.nf() * 3.0 * self.e * self.second_moment() * self.pitch_r.powi(2) / k).cbrt())
     }
 
     /// Inverse of the Timoshenko stiffness: the L \[m\] with k_T(L) = k, k in N·m/rad
-    /// (`design.md` §2 table, row 4T). k_T is strictly decreasing in L from +∞ to 0, so the
+    /// (`docs/design.md` §2 table, row 4T). k_T is strictly decreasing in L from +∞ to 0, so the
     /// root is unique; it is found by bisection to 1e-15 relative (or until the bracket
     /// cannot shrink further in f64). Error unless k is finite and > 0.
     pub fn length_for_stiffness_timoshenko(&self, k: f64) -> Result<f64, DomainError> {
@@ -195,30 +195,30 @@ impl Design {
     }
 
     /// Largest elastic tip deflection of the full beam, δ_max = σ_allow·l²/(3·E·r) \[m\]
-    /// (`design.md` §2 table, row 5, default δ_max).
+    /// (`docs/design.md` §2 table, row 5, default δ_max).
     pub fn delta_max(&self) -> f64 {
         self.sigma_allow * self.l * self.l / (3.0 * self.e * self.r)
     }
 
-    /// Beam bending capacity (tilt), θ_max = δ_max/l \[rad\] (`design.md` §2 table, row 5;
+    /// Beam bending capacity (tilt), θ_max = δ_max/l \[rad\] (`docs/design.md` §2 table, row 5;
     /// paper eq. 5, linearised).
     pub fn theta_max(&self) -> f64 {
         self.delta_max() / self.l
     }
 
-    /// Slot clearance, c = θ_max·t_c \[m\] (`design.md` §2 table, row 6; paper eq. 6).
+    /// Slot clearance, c = θ_max·t_c \[m\] (`docs/design.md` §2 table, row 6; paper eq. 6).
     pub fn slot_clearance(&self) -> f64 {
         self.theta_max() * self.t_c
     }
 
-    /// Slot radius, r_slot = r + c \[m\], r the beam radius (`design.md` §2 table, row 6;
+    /// Slot radius, r_slot = r + c \[m\], r the beam radius (`docs/design.md` §2 table, row 6;
     /// the paper's "R_c = R + θ_max t_c" with R meaning the beam radius).
     pub fn slot_radius(&self) -> f64 {
         self.r + self.slot_clearance()
     }
 
     /// Backlash from beam tilt at clutch position x \[m\], θ_b = θ_max·t_c/x \[rad\], defined
-    /// for t_c ≤ x ≤ l (`design.md` §2 table, row 7; paper eq. 7). Outside: domain error.
+    /// for t_c ≤ x ≤ l (`docs/design.md` §2 table, row 7; paper eq. 7). Outside: domain error.
     pub fn backlash_tilt(&self, x: f64) -> Result<f64, DomainError> {
         // Written as a negated "inside" test so that NaN is rejected too.
         if !(x >= self.t_c && x <= self.l) {
@@ -233,13 +233,13 @@ impl Design {
     }
 
     /// Output free play, φ_b = c/R \[rad\]: the output rotation before the slot touches the
-    /// beam (`design.md` §2 table, row "output free play").
+    /// beam (`docs/design.md` §2 table, row "output free play").
     pub fn free_play(&self) -> f64 {
         self.slot_clearance() / self.pitch_r
     }
 
     /// Loading branch of the friction hysteresis, τ = k·φ·(1 + (6/5)·μ·δ/L) with δ = R·φ
-    /// \[N·m\], φ in rad, L in m (`design.md` §2 table, row "friction hysteresis", and §2.1).
+    /// \[N·m\], φ in rad, L in m (`docs/design.md` §2 table, row "friction hysteresis", and §2.1).
     /// "Loading" means |φ| growing. For φ < 0 the branch is mirrored (δ enters by its
     /// magnitude, friction opposes the motion), so the torque is odd in φ.
     pub fn torque_loading(&self, phi: f64, l_act: f64) -> f64 {
@@ -247,26 +247,26 @@ impl Design {
     }
 
     /// Unloading branch of the friction hysteresis, τ = k·φ·(1 − (6/5)·μ·δ/L) with δ = R·φ
-    /// \[N·m\] (`design.md` §2 table, row "friction hysteresis", and §2.1). "Unloading" means
+    /// \[N·m\] (`docs/design.md` §2 table, row "friction hysteresis", and §2.1). "Unloading" means
     /// |φ| shrinking; mirrored for φ < 0 as in [`Design::torque_loading`].
     pub fn torque_unloading(&self, phi: f64, l_act: f64) -> f64 {
         self.stiffness(l_act) * phi * (1.0 - self.friction_factor(phi, l_act))
     }
 
-    /// (6/5)·μ·|δ|/L with δ = R·φ \[-\] (`design.md` §2.1).
+    /// (6/5)·μ·|δ|/L with δ = R·φ \[-\] (`docs/design.md` §2.1).
     fn friction_factor(&self, phi: f64, l_act: f64) -> f64 {
         1.2 * self.mu * (self.pitch_r * phi).abs() / l_act
     }
 
     /// Energy dissipated by one full loop 0 → φ_max → 0 \[J\]: ∫₀^φmax (τ_load − τ_unload) dφ
-    /// = k·(12/5)·μ·R·φ_max³/(3·L), the closed form of the §2.1 branches (`design.md` §2.1).
+    /// = k·(12/5)·μ·R·φ_max³/(3·L), the closed form of the §2.1 branches (`docs/design.md` §2.1).
     pub fn hysteresis_loop_energy(&self, phi_max: f64, l_act: f64) -> f64 {
         let phi = phi_max.abs();
         self.stiffness(l_act) * 2.4 * self.mu * self.pitch_r * phi.powi(3) / (3.0 * l_act)
     }
 
     /// Elastic coupling torque with the output free play as a dead zone \[N·m\]: 0 for
-    /// |φ| ≤ φ_b, k(L)·(|φ| − φ_b)·sign(φ) beyond (`design.md` §2 table, row "output free
+    /// |φ| ≤ φ_b, k(L)·(|φ| − φ_b)·sign(φ) beyond (`docs/design.md` §2 table, row "output free
     /// play").
     pub fn coupling_torque(&self, phi: f64, l_act: f64) -> f64 {
         let phi_b = self.free_play();
@@ -293,13 +293,13 @@ fn check_stiffness(k: f64) -> Result<(), DomainError> {
 }
 
 /// Natural frequency of the link on the coupling, ω_n = √(k/J) \[rad/s\], k in N·m/rad,
-/// J in kg·m² (`design.md` §2 table, row "natural frequency").
+/// J in kg·m² (`docs/design.md` §2 table, row "natural frequency").
 pub fn natural_frequency(k: f64, j: f64) -> f64 {
     (k / j).sqrt()
 }
 
 /// Stiffness that puts the natural frequency at ω: k = J·ω² \[N·m/rad\], J in kg·m², ω in
-/// rad/s (`design.md` §2 table, row "natural frequency", energy-optimal setting).
+/// rad/s (`docs/design.md` §2 table, row "natural frequency", energy-optimal setting).
 pub fn stiffness_for_frequency(j: f64, omega: f64) -> f64 {
     j * omega * omega
 }
@@ -314,7 +314,7 @@ pub enum Direction {
 }
 
 /// Follows a sequence of deflections φ and returns the friction-hysteresis torque, picking
-/// the branch from the direction of motion (`design.md` §2.1: "A reversal switches branch
+/// the branch from the direction of motion (`docs/design.md` §2.1: "A reversal switches branch
 /// (keep the direction as state)").
 ///
 /// Loading (|φ| growing, i.e. moving away from 0) uses [`Design::torque_loading`], unloading
@@ -374,18 +374,18 @@ impl HysteresisFollower {
 }
 
 // ---------------------------------------------------------------------------------------
-// Sizing against goals (design.md §10) and the linear two-mass actuator model, for the
+// Sizing against goals (docs/design.md §10) and the linear two-mass actuator model, for the
 // designer's tools (`vsa explore`, `vsa advise`).
 
 impl Design {
     /// Stress-limited deflection in closed form, θ_cap = σ_allow·L²/(3·E·r·R) \[rad\]
-    /// (`design.md` §10; independent of n). Equal to [`Design::deflection_capacity`].
+    /// (`docs/design.md` §10; independent of n). Equal to [`Design::deflection_capacity`].
     pub fn deflection_capacity_closed_form(&self, l_act: f64) -> f64 {
         self.sigma_allow * l_act * l_act / (3.0 * self.e * self.r * self.pitch_r)
     }
 
     /// Elastic energy stored at the stress limit, n·σ_allow²·π·r²·L/(24·E) \[J\]
-    /// (`design.md` §10: ½·τ_cap·θ_cap, ∝ σ²/E × active volume).
+    /// (`docs/design.md` §10: ½·τ_cap·θ_cap, ∝ σ²/E × active volume).
     pub fn energy_at_capacity(&self, l_act: f64) -> f64 {
         self.nf() * self.sigma_allow.powi(2) * PI * self.r * self.r * l_act / (24.0 * self.e)
     }
@@ -423,7 +423,7 @@ pub fn min_active_length(torque: f64, theta: f64, e: f64, sigma_allow: f64) -> f
 /// The actuator as a linear two-mass system: gear (motor and gearbox at the output) J_g
 /// with viscous friction b_g, driven by the motor torque k_t·i; beams k; link J_l with
 /// viscous friction b_l and a constant load; i = (V − k_e·ω_g)/R (no inductance,
-/// `design.md` §3).
+/// `docs/design.md` §3).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TwoMass {
     /// Gear-side inertia at the output \[kg·m²\].

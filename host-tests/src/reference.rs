@@ -1,6 +1,6 @@
-//! The reference numbers printed in `design.md`, and how to compare against a printed number.
+//! The reference numbers printed in `docs/design.md`, and how to compare against a printed number.
 
-/// design.md §2.2 table, as printed: L (mm), k, k_T (N·m/rad), θ at 2 N·m (°),
+/// docs/design.md §2.2 table, as printed: L (mm), k, k_T (N·m/rad), θ at 2 N·m (°),
 /// σ at 2 N·m (MPa), τ_cap (N·m).
 pub const TABLE_2_2: [(i32, &str, &str, &str, &str, &str); 5] = [
     (1, "7167.5", "4680.8", "0.0160", "653", "4.59"),
@@ -20,6 +20,6 @@ pub fn assert_printed(what: &str, value: f64, printed: &str) {
     let tol = 0.5 * 10f64.powi(-decimals) * (1.0 + 1e-9);
     assert!(
         (value - expected).abs() <= tol,
-        "{what}: {value} does not round to design.md's {printed} (±{tol})"
+        "{what}: {value} does not round to docs/design.md's {printed} (±{tol})"
     );
 }

@@ -1,4 +1,4 @@
-//! Closed-loop scenarios of issue 4 on top of [`plant::harness`]: the paper preset at a
+//! Closed-loop scenarios on top of [`plant::harness`]: the paper preset at a
 //! clutch length, J_link = 1e-3 kg·m², and the commands and loads of the acceptance tests.
 
 use model::control::{Command, Config};

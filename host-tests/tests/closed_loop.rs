@@ -1,4 +1,4 @@
-//! Closed-loop proof of the controller (issue 4) on the simulated actuator: paper preset,
+//! Closed-loop proof of the controller on the simulated actuator: paper preset,
 //! J_link = 1e-3 kg·m², plant coupling derived from the beam model at each clutch length
 //! (k, free play, hysteresis (6/5)·μ·R/L, stress per torque). Thresholds are the issue's;
 //! the measured figures are printed (`cargo test --test closed_loop -- --nocapture`).

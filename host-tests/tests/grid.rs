@@ -1,7 +1,7 @@
 //! The position controller's acceptance grid (see `host_tests::grid`): seeded random
 //! cases over clutch length 1…8 mm, link inertia 0.3e-3…5e-3 kg·m², load −0.3…+0.3 N·m
 //! (a quarter of the cases exactly 0), raw steps and minimum-jerk moves of 0.05…0.6 rad
-//! in both directions; once with the nominal actuator and once off-nominal (design.md §9:
+//! in both directions; once with the nominal actuator and once off-nominal (docs/design.md §9:
 //! resistance ×0.8…×1.4, k_t and k_e ×0.9…×1.1, gear inertia ×0.8…×1.25, gear friction
 //! ×0.5…×3, supply 10.5…12.6 V, current offset ±20 counts and gain ±5 %, pot offset ±3
 //! counts, link inertia ×0.5…×3 of the configured one). Every metric's worst case is
@@ -117,7 +117,7 @@ fn off_nominal_actuator_grid() {
 
 #[test]
 fn time_optimal_bound_matches_the_design_brief() {
-    // design.md §10: 0.5 rad with J_l = 1e-3: 107 ms; 0.3 rad: 74 ms; 0.5 rad with
+    // docs/design.md §10: 0.5 rad with J_l = 1e-3: 107 ms; 0.3 rad: 74 ms; 0.5 rad with
     // J_l = 3e-3: 119 ms (any L where the beams do not limit: 3 mm).
     for (h, j, want_ms) in [(0.5, 1e-3, 107.0), (0.3, 1e-3, 74.0), (0.5, 3e-3, 119.0)] {
         let t = grid::RigidActuator::nominal(j, 3e-3).time_optimal_s(h) * 1e3;

@@ -1,4 +1,4 @@
-//! Checks the f64 oracle (`host_tests::oracle`) against the published numbers in `design.md`
+//! Checks the f64 oracle (`host_tests::oracle`) against the published numbers in `docs/design.md`
 //! §2.2, with tolerances taken from how each number is printed there (half a unit in the last
 //! printed digit), plus internal consistency checks.
 
@@ -119,7 +119,7 @@ fn slot_clearance_radius_and_free_play() {
 
 #[test]
 fn fig6_deflection_vs_beam_radius() {
-    // design.md §2.2: L = 5 mm, 2 N·m, r = 0.5 / 1 / 1.5 mm → 2.00° / 0.125° / 0.0247°.
+    // docs/design.md §2.2: L = 5 mm, 2 N·m, r = 0.5 / 1 / 1.5 mm → 2.00° / 0.125° / 0.0247°.
     for (r_mm, printed) in [(0.5, "2.00"), (1.0, "0.125"), (1.5, "0.0247")] {
         let d = Design {
             r: r_mm * MM,

@@ -1,10 +1,10 @@
-//! The paper's figures and design.md's reference numbers, from the fixed-point model:
+//! The paper's figures and docs/design.md's reference numbers, from the fixed-point model:
 //! Fig. 5 (k and k_T for L = 1…5 mm), Fig. 6 (deflection at 2 N·m, L = 5 mm, for
-//! r = 0.5 / 1 / 1.5 mm), the stress/capacity table of design.md §2.2, the preset's
+//! r = 0.5 / 1 / 1.5 mm), the stress/capacity table of docs/design.md §2.2, the preset's
 //! backlash numbers (§2 row 5) and the link's anti-resonance (§3).
 //!
 //! Each number is checked twice: the model within 0.5 % of the f64 oracle, and the oracle
-//! against the number printed in design.md (within half a unit of its last printed digit).
+//! against the number printed in docs/design.md (within half a unit of its last printed digit).
 
 use host_tests::convert::{mm, mpa, nm, nm_rad, oracle_design, rad, rad_s, KG_MM2, MM, MPA};
 use host_tests::oracle;
@@ -63,7 +63,7 @@ fn fig5_stiffness_euler_bernoulli_and_timoshenko() {
 
 #[test]
 fn fig5_timoshenko_ratio_at_1mm() {
-    // design.md row 4T: k_T/k = 0.65 at L = 1 mm, r = 0.5 mm.
+    // docs/design.md row 4T: k_T/k = 0.65 at L = 1 mm, r = 0.5 mm.
     let (d, o) = paper();
     let ratio = o.stiffness_timoshenko(MM) / o.stiffness(MM);
     assert_printed("k_T/k at 1 mm", ratio, "0.65");
@@ -74,7 +74,7 @@ fn fig5_timoshenko_ratio_at_1mm() {
 
 #[test]
 fn fig6_deflection_vs_beam_radius() {
-    // 2 N·m at L = 5 mm; r in millionths of a mm, design.md's E–B values in degrees.
+    // 2 N·m at L = 5 mm; r in millionths of a mm, docs/design.md's E–B values in degrees.
     for (r_micro, printed) in [
         (500_000, "2.00"),
         (1_000_000, "0.125"),
@@ -131,7 +131,7 @@ fn table_deflection_stress_and_capacity() {
             1e-6,
         );
     }
-    // design.md §4: at L = 5 mm, 2 N·m is beyond the stress limit (3.3 GPa > 1.5 GPa).
+    // docs/design.md §4: at L = 5 mm, 2 N·m is beyond the stress limit (3.3 GPa > 1.5 GPa).
     let five = Length::from_int(5);
     assert!(two > d.torque_capacity(five).unwrap());
     assert!(mpa(d.root_stress(two, five).unwrap()) > 2.0 * o.sigma_allow / MPA);
@@ -139,7 +139,7 @@ fn table_deflection_stress_and_capacity() {
 
 #[test]
 fn preset_backlash_numbers() {
-    // design.md §2 row 5: δ_max = 0.32 mm → θ_max = 0.04 rad for the preset.
+    // docs/design.md §2 row 5: δ_max = 0.32 mm → θ_max = 0.04 rad for the preset.
     let (d, o) = paper();
     assert_printed("δ_max (mm)", o.delta_max() / MM, "0.32");
     assert_printed("θ_max (rad)", o.theta_max(), "0.04");
@@ -157,7 +157,7 @@ fn preset_backlash_numbers() {
 
 #[test]
 fn link_anti_resonance_and_torque_per_count() {
-    // design.md §3: J_link = 1e-3 kg·m² → 426 Hz at L = 1 mm, 38 Hz at L = 5 mm; torque per
+    // docs/design.md §3: J_link = 1e-3 kg·m² → 426 Hz at L = 1 mm, 38 Hz at L = 5 mm; torque per
     // gear-encoder count (300°/1024) is 36.7 N·m at L = 1 mm and 0.29 N·m at L = 5 mm.
     let (d, o) = paper();
     let j = Inertia::from_int(1000); // kg·mm²
@@ -169,7 +169,7 @@ fn link_anti_resonance_and_torque_per_count() {
         let k = d.stiffness(Length::from_int(l)).unwrap();
         let got = rad_s(natural_frequency(k, j).unwrap());
         assert_rel(&format!("ω_n({l} mm)"), got, want, FIG_TOL);
-        // design.md prints 36.7 for k(1 mm)·q = 36.650 (rounded twice): allow one unit in
+        // docs/design.md prints 36.7 for k(1 mm)·q = 36.650 (rounded twice): allow one unit in
         // its last digit here instead of a half.
         let printed: f64 = per_count.parse().unwrap();
         let unit =
@@ -177,7 +177,7 @@ fn link_anti_resonance_and_torque_per_count() {
         let want = o.stiffness(l_m) * count;
         assert!(
             (want - printed).abs() <= unit,
-            "τ per count ({l} mm): oracle {want} vs design.md {per_count}"
+            "τ per count ({l} mm): oracle {want} vs docs/design.md {per_count}"
         );
     }
 }

@@ -1,5 +1,5 @@
 //! The explorer's per-design numbers (`model::sizing`, `model::material`) against the f64
-//! oracle's independent formulas (design.md §10): stored energy at capacity
+//! oracle's independent formulas (docs/design.md §10): stored energy at capacity
 //! n·σ²·π·r²·L/(24·E), θ_cap = σ·L²/(3·E·r·R), beam mass, envelope volume, slot fit; and a
 //! brute-force grid: every design the model's check accepts meets every constraint by the
 //! oracle, and every design it rejects misses one.
@@ -64,7 +64,7 @@ fn rel(got: f64, want: f64) -> f64 {
 
 #[test]
 fn paper_preset_against_design_md() {
-    // design.md §10: the paper preset at L = 5 mm stores ≈ 7 mJ at θ_cap = 0.016 rad.
+    // docs/design.md §10: the paper preset at L = 5 mm stores ≈ 7 mJ at θ_cap = 0.016 rad.
     let (d, o) = both(DesignParams::PAPER).unwrap();
     let l5 = Length::from_int(5);
     let e = energy_at_capacity(&d, l5).unwrap().to_num::<f64>();

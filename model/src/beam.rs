@@ -1,6 +1,6 @@
 //! The beam model (Euler–Bernoulli or Timoshenko) and [`Setting`]: everything
 //! [`crate::stiffness`] and [`crate::stress`] compute at a clutch length, precomputed for
-//! one L and one model, for the 1 kHz loop (design.md §2 table).
+//! one L and one model, for the 1 kHz loop (docs/design.md §2 table).
 //!
 //! Domain of L: (0, l]; anything else is [`Error::ClutchLengthOutOfRange`]. Results that
 //! do not fit their format are [`Error::Overflow`] (e.g. k(L) for L → 0).
@@ -17,7 +17,7 @@ pub enum BeamModel {
     /// Euler–Bernoulli cantilever, paper eq. 4 (the paper's model and the default).
     #[default]
     EulerBernoulli,
-    /// Timoshenko cantilever (shear-corrected, design.md row 4T); softer at short L.
+    /// Timoshenko cantilever (shear-corrected, docs/design.md row 4T); softer at short L.
     Timoshenko,
 }
 
@@ -206,7 +206,7 @@ mod tests {
     #[test]
     fn paper_stiffness_table() {
         let d = Design::paper();
-        // design.md §2.2 (rounded in the table).
+        // docs/design.md §2.2 (rounded in the table).
         let table = [
             (1, 7167.5, 4680.8, 4.59),
             (2, 895.9, 790.9, 2.30),

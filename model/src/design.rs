@@ -1,4 +1,4 @@
-//! The validated beam design (design.md §2): parameters, domain, and every derived constant,
+//! The validated beam design (docs/design.md §2): parameters, domain, and every derived constant,
 //! computed once in [`Design::new`].
 //!
 //! Symbols: n beams of radius r at pitch radius R, Young's modulus E, shear modulus G,
@@ -85,7 +85,7 @@ pub struct DesignParams {
 }
 
 impl DesignParams {
-    /// The paper's actuator (design.md §2.2): n = 4, r = 0.5 mm, R = 7.8 mm, E = 200 GPa,
+    /// The paper's actuator (docs/design.md §2.2): n = 4, r = 0.5 mm, R = 7.8 mm, E = 200 GPa,
     /// G = 80 GPa, σ_allow = 1.5 GPa, l = 8 mm, t_c = 1 mm, μ = 0.4.
     pub const PAPER: DesignParams = DesignParams {
         beams: 4,
@@ -179,7 +179,7 @@ impl Design {
         Err(_) => panic!("the paper preset is a valid design"),
     };
 
-    /// The paper's design (design.md §2.2).
+    /// The paper's design (docs/design.md §2.2).
     #[must_use]
     pub const fn paper() -> Design {
         Self::PAPER

@@ -154,7 +154,7 @@ mod tests {
 
     #[test]
     fn anti_resonance_of_the_default_link() {
-        // design.md §3: J_link = 1e-3 kg·m² → 426 Hz at L = 1 mm, 38 Hz at L = 5 mm.
+        // docs/design.md §3: J_link = 1e-3 kg·m² → 426 Hz at L = 1 mm, 38 Hz at L = 5 mm.
         let d = Design::paper();
         let j = Inertia::from_int(1000);
         let w1 = natural_frequency(d.stiffness(Length::from_int(1)).unwrap(), j).unwrap();

@@ -1,4 +1,4 @@
-//! Friction hysteresis of the clutch (design.md §2.1, the paper's §2.3 made concrete).
+//! Friction hysteresis of the clutch (docs/design.md §2.1, the paper's §2.3 made concrete).
 //!
 //! A cantilever's tip load foreshortens it by (3/5)·δ²/L, so the beam slides through the
 //! clutch by du = (6/5)(δ/L)·dδ and kinetic friction μ·P over that slide dissipates

@@ -1,4 +1,4 @@
-//! Fixed-point maths of the vsa variable-stiffness actuator (see `design.md` §2).
+//! Fixed-point maths of the vsa variable-stiffness actuator (see `docs/design.md` §2).
 //!
 //! Four steel cantilever beams join a servo's output gear to its output shaft; a clutch
 //! plate sliding along them sets the active length L and with it the joint stiffness
@@ -20,7 +20,7 @@
 //! * [`sensors`]: the sensors' resolutions, their count-to-radian constants and the
 //!   encoder wrap;
 //! * [`control`]: the 1 kHz link-position controller, its trajectories and gain schedule;
-//! * [`supervisor`]: the latched fault checks (design.md §7); [`servo`]: the controller
+//! * [`supervisor`]: the latched fault checks (docs/design.md §7); [`servo`]: the controller
 //!   under the supervisor with the enable state machine, the firmware's per-tick decision;
 //! * [`error`]: the [`Error`] every fallible function returns.
 //!

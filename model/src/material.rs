@@ -2,12 +2,12 @@
 //! density ρ, each with its source.
 //!
 //! For deflection what matters is σ_allow/E: the stress-limited deflection is
-//! θ_cap = σ_allow·L²/(3·E·r·R) (design.md §10), and the energy a beam stores at capacity is
+//! θ_cap = σ_allow·L²/(3·E·r·R) (docs/design.md §10), and the energy a beam stores at capacity is
 //! σ_allow²/(24·E) per unit of active volume. The table lists that ratio's spread: spring
 //! steel 0.0075, glass-fibre rod 0.020 (2.7 times steel's).
 //!
 //! What σ_allow is: for the metals the stress the beam may reach in service without
-//! yielding (the paper preset's 1.5 GPa for spring steel, design.md §2; the 0.2 % yield
+//! yielding (the paper preset's 1.5 GPa for spring steel, docs/design.md §2; the 0.2 % yield
 //! strength or about 70 % of the minimum tensile strength of wire for the others); for the
 //! fibre rods, which do not yield, their flexural *strength*, i.e. no margin at all — an
 //! optimistic value that favours them.
@@ -63,7 +63,7 @@ const fn mpa(v: i32) -> Stress {
     Stress::from_int(v)
 }
 
-/// Spring steel, the paper preset's material (design.md §2.2).
+/// Spring steel, the paper preset's material (docs/design.md §2.2).
 pub const SPRING_STEEL: Material = Material {
     key: "spring-steel",
     name: "spring steel (music wire)",
@@ -71,7 +71,7 @@ pub const SPRING_STEEL: Material = Material {
     shear_modulus: mpa(80_000),
     allowable_stress: mpa(1_500),
     density_kg_m3: 7_850,
-    source: "E, G: the paper (sec. 3); sigma_allow: design.md sec. 2 (the project's default); \
+    source: "E, G: the paper (sec. 3); sigma_allow: docs/design.md sec. 2 (the project's default); \
              density: carbon spring steel, ASTM A228 music wire, 7.85 g/cm3",
 };
 

@@ -1,5 +1,5 @@
 //! The actuator's sensors as the controller, the supervisor, the simulated plant and the
-//! tools read them (design.md §3): their resolutions, the count-to-radian constants
+//! tools read them (docs/design.md §3): their resolutions, the count-to-radian constants
 //! derived from them, and the wrap of the link encoder.
 //!
 //! * link encoder: 12-bit magnetic, [`ENCODER_COUNTS`] per turn, wraps;

@@ -4,7 +4,7 @@
 //! the backlash of paper eqs. 5–7, and whether the clutch slots fit side by side.
 //!
 //! Everything is Euler–Bernoulli (paper eq. 4) and comes from the functions of this crate,
-//! except the three quantities that are new here (design.md §10):
+//! except the three quantities that are new here (docs/design.md §10):
 //!
 //! * energy at capacity E_cap = ½·τ_cap(l)·θ_cap(l) at the softest setting, J, I32F32
 //!   (closed form: n·σ_allow²·π·r²·l/(24·E), ∝ σ²/E × active volume; the oracle checks it);

@@ -1,4 +1,4 @@
-//! Joint stiffness at a clutch length L and its inverse (design.md §2 table):
+//! Joint stiffness at a clutch length L and its inverse (docs/design.md §2 table):
 //!
 //! * k(L) = n·3·E·I·R²/L³ (paper eq. 4, Euler–Bernoulli) and
 //!   k_T(L) = n·R²/(L³/(3EI) + L/(κGA)) (row 4T, Timoshenko);
@@ -96,7 +96,7 @@ impl Design {
         Ok(Stiffness::from_bits(or_overflow(k.to_i128(64, false))?))
     }
 
-    /// Shear-corrected joint stiffness k_T = n·R²/(L³/(3EI) + L/(κGA)) (Timoshenko, design.md
+    /// Shear-corrected joint stiffness k_T = n·R²/(L³/(3EI) + L/(κGA)) (Timoshenko, docs/design.md
     /// row 4T), L ∈ (0, l].
     ///
     /// # Errors

@@ -1,4 +1,4 @@
-//! Beam load and stress at a clutch length L (design.md §2 table): the joint deflection
+//! Beam load and stress at a clutch length L (docs/design.md §2 table): the joint deflection
 //! θ = τ/k (paper eqs. 1–3), the load on each beam P = τ/(n·R) (eq. 2), the root stress
 //! σ = P·L·r/I, the stress-limited torque τ_cap(L) = n·R·σ_allow·I/(r·L) and deflection
 //! θ_cap = τ_cap/k. The coefficients are derived once in [`Design::new`].

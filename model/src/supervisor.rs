@@ -1,4 +1,4 @@
-//! The supervisor (design.md §7): per-tick checks that latch a fault and turn the motor
+//! The supervisor (docs/design.md §7): per-tick checks that latch a fault and turn the motor
 //! off in the same tick, separate from the controller's live limits (clamps, which keep
 //! running and are only reported).
 //!
@@ -18,7 +18,7 @@
 //!
 //! Deflection envelope: φ_b + θ_cap(L) + one pot count + half an encoder count (the two
 //! quantisations) + the pot centre's calibration tolerance (`pot_tolerance_counts`, what
-//! calibration leaves, design.md §9): any larger measured deflection means the beams are
+//! calibration leaves, docs/design.md §9): any larger measured deflection means the beams are
 //! bent beyond their stress capacity or a sensor lies.
 //!
 //! The torque estimate is a model output (k_t·i minus the gear's inertial torque from the
@@ -173,7 +173,7 @@ pub struct SupervisorConfig {
     /// Heartbeat timeout, ms, ≥ 1. Armed by the first heartbeat. Default 100 ms.
     pub command_timeout_ms: u32,
     /// Calibration tolerance of the gear pot's centre, counts, ≤ 100, added to the
-    /// deflection envelope. Default 3 (what calibration leaves, design.md §9).
+    /// deflection envelope. Default 3 (what calibration leaves, docs/design.md §9).
     pub pot_tolerance_counts: u16,
     /// Consecutive ticks the torque estimate must exceed τ_cap before `beam-overload`
     /// latches, 1..=10. Default 2 (a one-tick spike of the estimate is not a load).

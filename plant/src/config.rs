@@ -1,9 +1,9 @@
 //! Configuration of the simulated actuator: plain `f32` parameters in SI units.
 //!
 //! The coupling parameters (stiffness, free play, hysteresis coefficient, stress per
-//! torque) are **derived by the caller** from the beam model (the `model` crate, `design.md`
+//! torque) are **derived by the caller** from the beam model (the `model` crate, `docs/design.md`
 //! §2) for the chosen geometry and clutch length; this crate does not compute them. The
-//! defaults are the paper preset (`design.md` §2.2) at L = 3 mm, for convenience.
+//! defaults are the paper preset (`docs/design.md` §2.2) at L = 3 mm, for convenience.
 
 /// Full-scale PWM duty in permille: `step_tick(±DUTY_FULL_SCALE)` applies ±supply voltage.
 pub const DUTY_FULL_SCALE: i16 = 1000;
@@ -15,7 +15,7 @@ pub const TICK_S: f32 = 1.0e-3;
 pub const MAX_SUBSTEPS: u16 = 400;
 
 /// DC motor, gearbox and H-bridge, all referred to the **output** of the 254:1 gearbox
-/// (gear efficiency folded into the constants, `design.md` §3).
+/// (gear efficiency folded into the constants, `docs/design.md` §3).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MotorConfig {
     /// H-bridge supply voltage, V. Default 12 V.
@@ -55,7 +55,7 @@ impl Default for MotorConfig {
 ///
 /// Torque on the link as a function of the deflection φ = θ_gear − θ_link:
 /// effective deflection φ_e = sign(φ)·max(|φ| − φ_b, 0) (free-play dead zone), then the
-/// hysteresis band of `design.md` §2.1, τ = k·φ_e·(1 ± c·|φ_e|) with c = (6/5)·μ·R/L
+/// hysteresis band of `docs/design.md` §2.1, τ = k·φ_e·(1 ± c·|φ_e|) with c = (6/5)·μ·R/L
 /// (because δ = R·φ_e), `+` while loading, `−` while unloading. See [`crate::Coupling`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CouplingConfig {

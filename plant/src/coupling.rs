@@ -17,7 +17,7 @@ pub enum Branch {
 
 /// Coupling torque as a function of the deflection history.
 ///
-/// Model (`design.md` §2, §2.1): φ_e = sign(φ)·max(|φ| − φ_b, 0); the torque lies in the band
+/// Model (`docs/design.md` §2, §2.1): φ_e = sign(φ)·max(|φ| − φ_b, 0); the torque lies in the band
 /// between the unloading branch k·φ_e·(1 − c·|φ_e|) and the loading branch
 /// k·φ_e·(1 + c·|φ_e|), c = (6/5)·μ·R/L. The branch is kept as state in the torque itself
 /// (a Prandtl / elastic–plastic operator): each update moves the torque by

@@ -4,7 +4,7 @@
 //! caller-supplied closure).
 //!
 //! The plant's coupling is derived from the beam model at the controller's clutch setting
-//! (`design.md` §2): stiffness k(L), free play φ_b, hysteresis coefficient (6/5)·μ·R/L and
+//! (`docs/design.md` §2): stiffness k(L), free play φ_b, hysteresis coefficient (6/5)·μ·R/L and
 //! root stress per N·m; the motor and link from the controller's configuration, so the
 //! controller's model and the plant agree (the plant adds Coulomb friction, hysteresis and
 //! quantisation the controller does not model) unless the scenario makes the actuator
@@ -70,7 +70,7 @@ pub struct Scenario {
     /// free play, where applying the load at t = 0 would slam the link into the beams.
     pub preload: bool,
     /// Changes of the simulated actuator from the nominal one the controller is
-    /// configured with (design.md §9); the controller does not see them.
+    /// configured with (docs/design.md §9); the controller does not see them.
     pub plant: Overrides,
     /// The supervisor's settings (the servo runs the controller under the supervisor; a
     /// latched fault turns the bridge off).

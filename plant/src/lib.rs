@@ -1,4 +1,4 @@
-//! Simulated actuator standing in for the real servo (see `design.md` §3).
+//! Simulated actuator standing in for the real servo (see `docs/design.md` §3).
 //!
 //! A DC motor behind a 254:1 gearbox (all constants referred to the output) drives the
 //! output gear through an H-bridge ([`BridgeCommand`]: signed duty in permille, coast,
@@ -36,7 +36,7 @@
 //! scenario gives the same [`Plant::digest`] on x86, the emulated M3 and the emulated M4F.
 //!
 //! The coupling parameters are plain `f32` that the caller derives from the beam model
-//! (`model` crate, `design.md` §2) for its geometry and clutch length; [`harness`] does
+//! (`model` crate, `docs/design.md` §2) for its geometry and clutch length; [`harness`] does
 //! that and closes the loop with the `model` crate's controller (metrics streamed, no
 //! allocation); [`metrics`] defines the step-response figures every tool reports.
 #![cfg_attr(not(test), no_std)]

@@ -1,5 +1,5 @@
 //! Off-nominal actuators on demand: `NAME=VALUE` changes of the simulated actuator's
-//! parameters (design.md §9, the real world), applied to a [`PlantConfig`] after it was
+//! parameters (docs/design.md §9, the real world), applied to a [`PlantConfig`] after it was
 //! derived from the controller's (nominal) configuration. The controller keeps its
 //! configuration: only the plant changes.
 //!

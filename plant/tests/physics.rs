@@ -5,7 +5,7 @@ use plant::{
     PlantConfig,
 };
 
-/// Paper preset, E–B stiffness at L = 1…5 mm (`design.md` §2.2), N·m/rad.
+/// Paper preset, E–B stiffness at L = 1…5 mm (`docs/design.md` §2.2), N·m/rad.
 const K_TABLE: [(u32, f32); 5] = [(1, 7167.5), (2, 895.9), (3, 265.5), (4, 112.0), (5, 57.3)];
 
 fn frictionless_motor() -> MotorConfig {

@@ -144,7 +144,7 @@ pub const MAX_FRAME: usize = cobs_max(MAX_PAYLOAD) + 1;
 pub const MAX_TELEMETRY_FRAME: usize = cobs_max(MAX_HEADER + MAX_TELEMETRY_BODY + CRC_LEN) + 1;
 
 /// Clutch length range accepted by [`Request::SetClutchLength`], µm: 1–8 mm. 8 mm is the
-/// whole usable beam length l of the paper preset (design.md §2.2); the paper's own design
+/// whole usable beam length l of the paper preset (docs/design.md §2.2); the paper's own design
 /// range is 1–5 mm. The firmware may refuse lengths its configured design cannot reach
 /// ([`ErrorCode::OutOfRange`] from the [`Device`]).
 pub const CLUTCH_MIN_UM: u32 = 1_000;

@@ -68,7 +68,7 @@ impl Board {
     }
 }
 
-/// Stiffness of the paper design, E–B model, f64 from first principles (design.md §2.2:
+/// Stiffness of the paper design, E–B model, f64 from first principles (docs/design.md §2.2:
 /// n = 4 beams of radius r = 0.5 mm, E = 200 GPa, pitch radius R = 7.8 mm):
 /// k = n·3·E·I·R²/L³ = 12·E·I·R²/L³ with I = π·r⁴/4.
 fn k_oracle(l_m: f64) -> f64 {
@@ -120,7 +120,7 @@ fn status_reports_the_configured_clutch_and_stiffness() {
 #[test]
 fn stiffness_request_returns_the_inverse_and_reconfigures() {
     let mut b = Board::new();
-    // k = 895.9 N·m/rad ↔ L = 2 mm (design.md §2.2).
+    // k = 895.9 N·m/rad ↔ L = 2 mm (docs/design.md §2.2).
     let k_mnm = (k_oracle(2e-3) * 1e3).round() as u32;
     match b.ask(Request::SetStiffness {
         stiffness_mnm_per_rad: k_mnm,

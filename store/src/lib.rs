@@ -94,7 +94,7 @@
 //!   run random sequences of saves, cuts, resets and faults (`tests/power_fail.rs`); 1 000
 //!   saves wear both pages evenly (`tests/wear.rs`).
 //!
-//! # The STM32F4's flash and the 1 kHz loop (design.md §10)
+//! # The STM32F4's flash and the 1 kHz loop (docs/design.md §10)
 //!
 //! Programming or erasing the F4's flash stalls instruction fetch from it: a word program
 //! takes ~16 µs, a 16 KiB sector erase 0.25–0.5 s, a 128 KiB one 1–2 s. The loop runs from

@@ -109,7 +109,7 @@ fn session(c: &mut Client, garbage_line: &mut impl Write) -> Result<Report> {
         "fresh board: {s:?}"
     );
     c.set_clutch_length(3_000).map_err(err("clutch 3 mm"))?;
-    // k(3 mm) = 265.5 N·m/rad (design.md §2.2): the inverse must give back 3 mm.
+    // k(3 mm) = 265.5 N·m/rad (docs/design.md §2.2): the inverse must give back 3 mm.
     let l = c.set_stiffness(265_500).map_err(err("stiffness"))?;
     ensure!(
         (2_990..=3_010).contains(&l),

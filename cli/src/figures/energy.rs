@@ -1,6 +1,6 @@
 //! `energy_per_cycle`: the motor's electrical energy per cycle of a periodic motion against
 //! the clutch length L. The paper's motivation is that a compliant joint tuned to the
-//! motion (k = J·ω², design.md §2) stores and returns energy that a stiff one makes the
+//! motion (k = J·ω², docs/design.md §2) stores and returns energy that a stiff one makes the
 //! motor supply; this figure measures what the simulated actuator actually draws.
 //!
 //! # What is simulated

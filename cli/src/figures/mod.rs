@@ -1,4 +1,4 @@
-//! `vsa figures --out DIR`: the paper's figures (design.md §8) for the paper preset, as SVG,
+//! `vsa figures --out DIR`: the paper's figures (docs/design.md §8) for the paper preset, as SVG,
 //! PNG and the CSV behind each, all values from the model crate.
 //!
 //! * `fig4_hysteresis`: friction hysteresis loops at x = 0.2·l, 0.5·l, 0.8·l, one cycle

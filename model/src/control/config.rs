@@ -18,7 +18,7 @@ pub enum ClutchSetting {
 }
 
 /// Motor and gearbox, all referred to the gearbox output (AX-12A class defaults,
-/// design.md §3). Units in the field docs; every field is I32F32 unless stated.
+/// docs/design.md §3). Units in the field docs; every field is I32F32 unless stated.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct MotorParams {
     /// H-bridge supply, V, in [1, 100]. Duty ±1000 ‰ applies ±supply.

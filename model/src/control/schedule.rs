@@ -1,5 +1,5 @@
 //! The gain schedule: the per-tick constants derived from a validated configuration
-//! (design.md §11; the summary is in the [`crate::control`] docs).
+//! (docs/design.md §11; the summary is in the [`crate::control`] docs).
 //!
 //! Everything here runs when the configuration changes (divisions, square roots and
 //! 128-bit arithmetic are fine); [`Schedule`] holds the per-tick constants as [`Gain`]s.
@@ -30,11 +30,11 @@ pub const BRAKE_FRACTION: I32F32 = I32F32::lit("0.5");
 /// train's dry friction).
 pub const FREE_PLAY_SWITCH_NM: I32F32 = I32F32::lit("0.1");
 /// Armature-resistance error the back-EMF observer's dead bands allow for, as a fraction
-/// of the configured R: copper from cold to hot (+40 %, design.md §9). With R off by ΔR
+/// of the configured R: copper from cold to hot (+40 %, docs/design.md §9). With R off by ΔR
 /// the observer reads ω_g + ΔR·i/k_e.
 pub const RESISTANCE_TOLERANCE: I32F32 = I32F32::lit("0.4");
 /// Current-sense offset the observer's dead bands allow for, ADC counts (what
-/// calibration leaves, design.md §9); plus 1.5 counts of resolution.
+/// calibration leaves, docs/design.md §9); plus 1.5 counts of resolution.
 pub const CURRENT_OFFSET_TOLERANCE_COUNTS: i32 = 20;
 /// Fraction of the elastic impact speed (`impact_speed`) the free-play impact limit lets
 /// the gear reach: the observer and the link velocity lag, and the gear is still driven
