@@ -71,7 +71,8 @@ pub const SPRING_STEEL: Material = Material {
     shear_modulus: mpa(80_000),
     allowable_stress: mpa(1_500),
     density_kg_m3: 7_850,
-    source: "E, G: the paper (sec. 3); sigma_allow: docs/design.md sec. 2 (the project's default); \
+    source:
+        "E, G: the paper (sec. 3); sigma_allow: docs/design.md sec. 2 (the project's default); \
              density: carbon spring steel, ASTM A228 music wire, 7.85 g/cm3",
 };
 
