@@ -1,7 +1,11 @@
 //! The end-to-end test of the host link: an emulated board serving the protocol
 //! (`--serve`), driven through the same `client` library as `vsa`, is configured, enabled,
-//! moved and recorded; 10 kB of random bytes are sent during a second move; then the
-//! heartbeats stop and the board must latch `command-timeout`.
+//! moved and recorded; 10 kB of random bytes are sent during a second move (which also
+//! measures what the emulated USART takes per second); a target outside the position
+//! window is refused; heartbeats are armed and the line is flooded with valid frames
+//! faster than the USART takes them, so the heartbeats queue behind them (the board must
+//! count the frames as link activity and latch nothing); then the heartbeats stop and the
+//! board must latch `command-timeout`, which a clear must recover from for good.
 //!
 //! The recorded motion is held to the controller issue's tolerances for a 0.5 rad move
 //! with a 0.3 N·m load (`--load-mnm 300`): overshoot ≤ 5 %, within ±1 encoder count of the
@@ -13,8 +17,9 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, ensure, Context, Result};
+use client::protocol::{encode_to_vec, Frame, Request};
 use client::qemu::{Board as ClientBoard, LogSink, QemuBoard, QemuOptions};
-use client::{Client, FaultCode, State, TelemetryFrame};
+use client::{Client, ErrorCode, FaultCode, State, TelemetryFrame};
 
 use crate::board::Board;
 use crate::defmt_log::LogFormat;
@@ -44,6 +49,15 @@ pub struct Report {
     pub lost_samples: u64,
     /// Wall-clock time the 10 kB took to go out, and the protocol errors they caused.
     pub garbage_secs: f64,
+    /// Bytes per second the emulated USART took during the garbage.
+    pub usart_bytes_per_s: f64,
+    /// Valid frames flooded onto the line while heartbeats were armed, their bytes, and
+    /// the wall-clock time until the board had taken them all.
+    pub flood_frames: usize,
+    /// Bytes of the flood.
+    pub flood_bytes: usize,
+    /// Seconds until the board had taken the flood.
+    pub flood_secs: f64,
     /// Protocol errors counted by the board after the garbage.
     pub protocol_errors: u32,
     /// |link − target| at the end of the move made under garbage, counts.
@@ -56,14 +70,18 @@ impl std::fmt::Display for Report {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "move 0.5 rad / 300 ms at 0.3 N·m: overshoot {:.2} %, within {:.2} counts from 400 ms on, {} samples at 500 Hz, {} lost; 10 kB garbage in {:.2} s during a move: {} protocol errors, move ended {:.2} counts from its target, no fault; command-timeout after {} ms",
+            "move 0.5 rad / 300 ms at 0.3 N·m: overshoot {:.2} %, within {:.2} counts from 400 ms on, {} samples at 500 Hz, {} lost; 10 kB garbage in {:.2} s during a move (USART {:.0} B/s): {} protocol errors, move ended {:.2} counts from its target, no fault; target outside the window refused; {} valid frames ({} B) flooded with heartbeats armed, taken in {:.2} s, no fault; command-timeout after {} ms, cleared for good",
             self.overshoot_pct,
             self.settled_error_counts,
             self.samples,
             self.lost_samples,
             self.garbage_secs,
+            self.usart_bytes_per_s,
             self.protocol_errors,
             self.garbage_move_error_counts,
+            self.flood_frames,
+            self.flood_bytes,
+            self.flood_secs,
             self.timeout_ms
         )
     }
@@ -153,6 +171,7 @@ fn session(c: &mut Client, garbage_line: &mut impl Write) -> Result<Report> {
     c.wait_ready(Duration::from_secs(30), Duration::from_millis(200))
         .map_err(err("ping after the garbage"))?;
     let garbage_secs = t.elapsed().as_secs_f64();
+    let usart_bytes_per_s = (GARBAGE_BYTES + 1) as f64 / garbage_secs;
     c.wait(Duration::from_millis(800))
         .map_err(err("after garbage"))?;
     let s = c.status().map_err(err("status after garbage"))?;
@@ -183,15 +202,44 @@ fn session(c: &mut Client, garbage_line: &mut impl Write) -> Result<Report> {
         "move under garbage ended {garbage_move_error_counts:.2} counts from its target"
     );
 
-    // Heartbeats for a while, then none: command-timeout after the timeout (100 ms) + a
-    // tick.
+    // A target outside the position window (±2.5 rad) is refused, nothing moves.
+    match c.move_to(2_520_000, MOVE_MS) {
+        Err(client::Error::Refused {
+            code: ErrorCode::OutOfRange,
+            ..
+        }) => {}
+        other => bail!("a move to 2.52 rad (outside ±2.5 rad) gave {other:?}"),
+    }
+
+    // Heartbeats armed, then a flood of valid frames (status requests) for 1 s at twice
+    // what the USART takes: the heartbeats queue behind them for up to a second, and the
+    // board must take the frames themselves as link activity.
     c.set_heartbeat(true);
     c.heartbeat().map_err(err("heartbeat"))?;
+    c.move_to(TARGET_URAD, MOVE_MS)
+        .map_err(err("move under the flood"))?;
+    let frame = encode_to_vec(&Frame::new(60_000, Request::GetStatus))
+        .map_err(|e| anyhow!("encoding: {e}"))?;
+    let flood_frames = (2.0 * usart_bytes_per_s / frame.len() as f64).ceil() as usize;
+    let t = Instant::now();
+    for i in 0..flood_frames {
+        garbage_line.write_all(&frame).context("flooding")?;
+        // Spread over a second, as a chatty host would send them.
+        let due = Duration::from_secs_f64((i + 1) as f64 / flood_frames as f64);
+        c.wait(due.saturating_sub(t.elapsed()))
+            .map_err(err("heartbeats during the flood"))?;
+    }
+    c.wait_ready(Duration::from_secs(30), Duration::from_millis(200))
+        .map_err(err("ping after the flood"))?;
+    let flood_secs = t.elapsed().as_secs_f64();
     c.wait(Duration::from_millis(300))
         .map_err(err("heartbeats"))?;
+    let s = c.status().map_err(err("status"))?;
     ensure!(
-        c.status().map_err(err("status"))?.faults.is_empty(),
-        "a fault while the heartbeats were coming"
+        s.faults.is_empty() && s.state == State::Enabled,
+        "a fault while the heartbeats were queued behind valid frames: {:?}, first {:?}",
+        s.faults,
+        s.first_fault
     );
     c.set_heartbeat(false);
     c.wait(Duration::from_millis(400)).map_err(err("timeout"))?;
@@ -209,13 +257,25 @@ fn session(c: &mut Client, garbage_line: &mut impl Write) -> Result<Report> {
         "command-timeout after {} ms, expected 101 (timeout 100 ms)",
         first.value
     );
+    // The timeout ended the session: the clear holds (it used to re-latch at once).
     c.clear_fault().map_err(err("clear"))?;
+    c.wait(Duration::from_millis(200))
+        .map_err(err("after clear"))?;
+    let after = c.status().map_err(err("status after clear"))?;
+    ensure!(
+        !after.faults.contains(FaultCode::CommandTimeout),
+        "command-timeout latched again after the clear: {after:?}"
+    );
     Ok(Report {
         overshoot_pct,
         settled_error_counts,
         samples,
         lost_samples,
         garbage_secs,
+        usart_bytes_per_s,
+        flood_frames,
+        flood_bytes: flood_frames * frame.len(),
+        flood_secs,
         protocol_errors: s.protocol_errors,
         garbage_move_error_counts,
         timeout_ms: first.value,
