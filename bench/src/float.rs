@@ -1,9 +1,10 @@
 //! An f32 port of the per-tick control step and of k(L) / L(k), kept **only** to compare
-//! instruction counts with the fixed-point `model` (issue 7). Nothing in the firmware uses
-//! it.
+//! instruction counts with the fixed-point `model` (`cargo xtask bench`). Nothing in the
+//! firmware uses it.
 //!
 //! It mirrors the structure of the fixed-point code statement by statement, with the same
-//! per-tick work and the same branches, in SI units and f32:
+//! per-tick work and the same branches, in SI units and f32 (so `duplicates` pairs it with
+//! `model`: on purpose, a comparison is only fair between the same steps):
 //!
 //! * [`FloatController::step`] is `model::control::Controller::step` (encoder unwrapping,
 //!   back-EMF observer, blended torque estimate, reference, feed-forward, free-play
@@ -32,25 +33,27 @@
 
 use core::f32::consts::PI;
 
-use model::control::{encoder_delta, Command, Config, Schedule};
+use model::control::{Command, Config, Schedule};
+use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
 use model::servo::{BridgeDemand, TickInput};
 use model::supervisor::{Fault, FaultCode, FaultSet, Supervisor};
 use model::{Design, Length, Stiffness};
 
+// The sensors' resolutions (`model::sensors`) in the types the port computes with.
 /// Encoder counts per revolution.
-const ENCODER_COUNTS: i32 = 4096;
-/// Pot counts over its 300° span.
-const POT_COUNTS: i32 = 1024;
+const ENCODER_COUNTS: i32 = sensors::ENCODER_COUNTS as i32;
+/// Pot counts over its span.
+const POT_COUNTS: i32 = sensors::POT_COUNTS as i32;
 /// Current ADC zero.
-const ADC_MID: i32 = 2048;
+const ADC_MID: i32 = sensors::ADC_MID as i32;
 /// Half an encoder count, rad.
-const HALF_COUNT: f32 = PI / 4096.0;
+const HALF_COUNT: f32 = PI / ENCODER_COUNTS as f32;
 /// One encoder count per tick as a velocity, rad/s.
-const COUNT_PER_TICK: f32 = 2.0 * PI / 4096.0 * 1000.0;
-/// One pot count, rad (300°/1024).
-const POT_COUNT: f32 = 5.0 * PI / 3.0 / 1024.0;
+const COUNT_PER_TICK: f32 = 2.0 * PI / ENCODER_COUNTS as f32 * 1000.0;
+/// One pot count, rad: the span (300° = 5π/3) over the counts.
+const POT_COUNT: f32 = POT_SPAN_DEG as f32 / 60.0 * PI / 3.0 / POT_COUNTS as f32;
 /// Current ADC counts per ampere.
-const ADC_COUNTS_PER_A: f32 = 1024.0;
+const ADC_COUNTS_PER_A: f32 = sensors::ADC_COUNTS_PER_A as f32;
 /// Control period, s.
 const DT: f32 = 1e-3;
 
@@ -670,7 +673,8 @@ impl FloatSupervisor {
     pub fn new(sup: &Supervisor, pot_center: u16) -> Self {
         let cfg = sup.config();
         FloatSupervisor {
-            trip_adc: ((cfg.trip_current_a.to_bits() * 1024) >> 32) as i32,
+            trip_adc: ((cfg.trip_current_a.to_bits() * i64::from(sensors::ADC_COUNTS_PER_A)) >> 32)
+                as i32,
             adc_min: cfg.adc_min,
             adc_max: cfg.adc_max,
             max_jump_counts: sup.max_jump_counts(),
@@ -723,7 +727,11 @@ impl FloatSupervisor {
         } else {
             let adc = i32::from(r.current_adc) - ADC_MID;
             if adc.abs() > self.trip_adc {
-                note(self, FaultCode::OverCurrent, adc * 1000 / 1024);
+                note(
+                    self,
+                    FaultCode::OverCurrent,
+                    adc * 1000 / i32::from(sensors::ADC_COUNTS_PER_A),
+                );
             }
         }
         let mut link_moved = true;

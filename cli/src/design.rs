@@ -158,7 +158,8 @@ fn json<T: Serialize>(v: &T) -> CliResult<String> {
 // ---------------------------------------------------------------------------------------
 // Parsing and validation
 
-fn f(x: I32F32) -> f64 {
+/// A model value as f64 for printing (exact: every I32F32 value is an f64).
+pub(crate) fn to_f64(x: I32F32) -> f64 {
     x.to_num::<f64>()
 }
 
@@ -186,14 +187,18 @@ fn quantity(arg: &'static str, s: &Option<String>, kind: Kind) -> CliResult<Opti
 }
 
 fn range_mm(lo: Length, hi: Length) -> String {
-    format!("[{}, {}] mm", trim(f(lo.get())), trim(f(hi.get())))
+    format!(
+        "[{}, {}] mm",
+        trim(to_f64(lo.get())),
+        trim(to_f64(hi.get()))
+    )
 }
 
 fn range_gpa(lo: Stress, hi: Stress) -> String {
     format!(
         "[{}, {}] GPa",
-        trim(f(lo.get()) / 1e3),
-        trim(f(hi.get()) / 1e3)
+        trim(to_f64(lo.get()) / 1e3),
+        trim(to_f64(hi.get()) / 1e3)
     )
 }
 
@@ -274,18 +279,18 @@ pub fn parse_design(args: &DesignArgs) -> CliResult<Design> {
                 "--beam-radius",
                 format!(
                     "{} is out of range {}",
-                    shown(&r, 0, "mm", f(pp.beam_radius.get())),
+                    shown(&r, 0, "mm", to_f64(pp.beam_radius.get())),
                     range_mm(BEAM_RADIUS_MIN, BEAM_RADIUS_MAX)
                 ),
             ),
             E::PitchRadiusOutOfRange => {
-                let v = shown(&big_r, 0, "mm", f(pp.pitch_radius.get()));
+                let v = shown(&big_r, 0, "mm", to_f64(pp.pitch_radius.get()));
                 if p.pitch_radius >= PITCH_RADIUS_MIN && p.pitch_radius <= PITCH_RADIUS_MAX {
                     CliError::usage(
                         arg(&big_r, "--pitch-radius"),
                         format!(
                             "{v} must be larger than the beam radius r = {}",
-                            shown(&r, 0, "mm", f(pp.beam_radius.get()))
+                            shown(&r, 0, "mm", to_f64(pp.beam_radius.get()))
                         ),
                     )
                 } else {
@@ -302,7 +307,7 @@ pub fn parse_design(args: &DesignArgs) -> CliResult<Design> {
                 "--modulus",
                 format!(
                     "{} is out of range {}",
-                    shown(&e, 3, "GPa", f(pp.youngs_modulus.get()) / 1e3),
+                    shown(&e, 3, "GPa", to_f64(pp.youngs_modulus.get()) / 1e3),
                     range_gpa(MODULUS_MIN, MODULUS_MAX)
                 ),
             ),
@@ -310,7 +315,7 @@ pub fn parse_design(args: &DesignArgs) -> CliResult<Design> {
                 "--shear-modulus",
                 format!(
                     "{} is out of range {}",
-                    shown(&g, 3, "GPa", f(pp.shear_modulus.get()) / 1e3),
+                    shown(&g, 3, "GPa", to_f64(pp.shear_modulus.get()) / 1e3),
                     range_gpa(MODULUS_MIN, MODULUS_MAX)
                 ),
             ),
@@ -318,24 +323,24 @@ pub fn parse_design(args: &DesignArgs) -> CliResult<Design> {
                 arg(&g, "--modulus"),
                 format!(
                     "G = {} is below E/3 for E = {} (Poisson's ratio ν = E/(2G) − 1 above 0.5 is non-physical)",
-                    shown(&g, 3, "GPa", f(pp.shear_modulus.get()) / 1e3),
-                    shown(&e, 3, "GPa", f(pp.youngs_modulus.get()) / 1e3)
+                    shown(&g, 3, "GPa", to_f64(pp.shear_modulus.get()) / 1e3),
+                    shown(&e, 3, "GPa", to_f64(pp.youngs_modulus.get()) / 1e3)
                 ),
             ),
             E::AllowableStressOutOfRange => CliError::usage(
                 "--allowable-stress",
                 format!(
                     "{} is out of range [{}, {}] MPa",
-                    shown(&s, 0, "MPa", f(pp.allowable_stress.get())),
-                    trim(f(ALLOWABLE_STRESS_MIN.get())),
-                    trim(f(ALLOWABLE_STRESS_MAX.get()))
+                    shown(&s, 0, "MPa", to_f64(pp.allowable_stress.get())),
+                    trim(to_f64(ALLOWABLE_STRESS_MIN.get())),
+                    trim(to_f64(ALLOWABLE_STRESS_MAX.get()))
                 ),
             ),
             E::BeamLengthOutOfRange => CliError::usage(
                 "--beam-length",
                 format!(
                     "{} is out of range {}",
-                    shown(&l, 0, "mm", f(pp.beam_length.get())),
+                    shown(&l, 0, "mm", to_f64(pp.beam_length.get())),
                     range_mm(BEAM_LENGTH_MIN, BEAM_LENGTH_MAX)
                 ),
             ),
@@ -343,17 +348,17 @@ pub fn parse_design(args: &DesignArgs) -> CliResult<Design> {
                 "--beam-length",
                 format!(
                     "{} must be larger than the clutch thickness t_c = {}",
-                    shown(&l, 0, "mm", f(pp.beam_length.get())),
-                    shown(&tc, 0, "mm", f(pp.clutch_thickness.get()))
+                    shown(&l, 0, "mm", to_f64(pp.beam_length.get())),
+                    shown(&tc, 0, "mm", to_f64(pp.clutch_thickness.get()))
                 ),
             ),
             E::ClutchThicknessOutOfRange => CliError::usage(
                 "--clutch-thickness",
                 format!(
                     "{} is out of range [{} mm, l = {}) (t_c must be below the beam length)",
-                    shown(&tc, 0, "mm", f(pp.clutch_thickness.get())),
-                    trim(f(CLUTCH_THICKNESS_MIN.get())),
-                    shown(&l, 0, "mm", f(pp.beam_length.get()))
+                    shown(&tc, 0, "mm", to_f64(pp.clutch_thickness.get())),
+                    trim(to_f64(CLUTCH_THICKNESS_MIN.get())),
+                    shown(&l, 0, "mm", to_f64(pp.beam_length.get()))
                 ),
             ),
             E::FrictionOutOfRange => CliError::usage(
@@ -361,7 +366,7 @@ pub fn parse_design(args: &DesignArgs) -> CliResult<Design> {
                 format!(
                     "{} is out of range [0, {}]",
                     mu.map_or(Decimal::ZERO, |(d, _)| d),
-                    trim(f(FRICTION_MAX.get()))
+                    trim(to_f64(FRICTION_MAX.get()))
                 ),
             ),
             other => CliError::usage("design", other.to_string()),
@@ -382,7 +387,7 @@ fn parse_torque(s: &str) -> CliResult<Torque> {
             "--torque",
             format!(
                 "{q} is too large (torques stay below {} N·m)",
-                sig(f(Torque::MAX.get()), 2)
+                sig(to_f64(Torque::MAX.get()), 2)
             ),
         )
     })
@@ -476,7 +481,7 @@ pub fn parse_lengths(s: &str, design: &Design) -> CliResult<Vec<Length>> {
                     ARG,
                     format!(
                         "{d} mm is out of range (0, {}] mm (0 < L ≤ beam length l)",
-                        trim(f(l.get()))
+                        trim(to_f64(l.get()))
                     ),
                 ))
             } else {
@@ -550,10 +555,10 @@ impl Report {
 
     /// The JSON document (see the module docs).
     pub fn to_json(&self) -> JsonReport {
-        let mm = |v: Length| si(f(v.get()) * 1e-3);
+        let mm = |v: Length| si(to_f64(v.get()) * 1e-3);
         JsonReport {
             design: JsonDesign::of(&self.design),
-            torque_nm: si(f(self.torque.get())),
+            torque_nm: si(to_f64(self.torque.get())),
             rows: self
                 .rows
                 .iter()
@@ -561,12 +566,12 @@ impl Report {
                     length_m: mm(r.length),
                     stiffness_nm_per_rad: r.stiffness.map(|k| si(k64(k))),
                     stiffness_shear_nm_per_rad: r.stiffness_shear.map(|k| si(k64(k))),
-                    deflection_rad: r.deflection.map(|a| si(f(a.get()))),
-                    beam_force_n: r.beam_force.map(|v| si(f(v.get()))),
-                    stress_pa: r.stress.map(|v| si(f(v.get()) * 1e6)),
-                    torque_capacity_nm: r.torque_capacity.map(|v| si(f(v.get()))),
-                    deflection_capacity_rad: r.deflection_capacity.map(|a| si(f(a.get()))),
-                    backlash_tilt_rad: r.backlash_tilt.map(|a| si(f(a.get()))),
+                    deflection_rad: r.deflection.map(|a| si(to_f64(a.get()))),
+                    beam_force_n: r.beam_force.map(|v| si(to_f64(v.get()))),
+                    stress_pa: r.stress.map(|v| si(to_f64(v.get()) * 1e6)),
+                    torque_capacity_nm: r.torque_capacity.map(|v| si(to_f64(v.get()))),
+                    deflection_capacity_rad: r.deflection_capacity.map(|a| si(to_f64(a.get()))),
+                    backlash_tilt_rad: r.backlash_tilt.map(|a| si(to_f64(a.get()))),
                 })
                 .collect(),
         }
@@ -576,7 +581,7 @@ impl Report {
     pub fn render(&self) -> String {
         let p = self.design.params();
         let mut out = header(&self.design);
-        let t = f(self.torque.get());
+        let t = to_f64(self.torque.get());
         out.push_str(&format!("\nLoad T = {} N·m\n\n", trim(t)));
         let mut table = Table::new(&[
             ("L", "mm"),
@@ -591,41 +596,41 @@ impl Report {
             ("θ_cap", "rad"),
             ("θ_b tilt", "rad"),
         ]);
-        let sigma_allow = f(p.allowable_stress.get());
+        let sigma_allow = to_f64(p.allowable_stress.get());
         let mut warnings = String::new();
         for r in &self.rows {
-            let theta = r.deflection.map(|a| f(a.get()));
-            let stress = r.stress.map(|s| f(s.get()));
+            let theta = r.deflection.map(|a| to_f64(a.get()));
+            let stress = r.stress.map(|s| to_f64(s.get()));
             table.row(vec![
-                sig(f(r.length.get()), 4),
+                sig(to_f64(r.length.get()), 4),
                 opt(r.stiffness.map(k64), 5),
                 opt(r.stiffness_shear.map(k64), 5),
                 opt(theta, 3),
                 opt(theta.map(f64::to_degrees), 3),
-                opt(r.beam_force.map(|v| f(v.get())), 3),
+                opt(r.beam_force.map(|v| to_f64(v.get())), 3),
                 opt(stress, 3),
                 // Safety factor: a ratio of the model's σ_allow and σ (display only).
                 stress
                     .filter(|s| *s > 0.0)
                     .map_or_else(|| NONE.to_string(), |s| sig(sigma_allow / s, 3)),
-                opt(r.torque_capacity.map(|v| f(v.get())), 3),
-                opt(r.deflection_capacity.map(|a| f(a.get())), 3),
-                opt(r.backlash_tilt.map(|a| f(a.get())), 3),
+                opt(r.torque_capacity.map(|v| to_f64(v.get())), 3),
+                opt(r.deflection_capacity.map(|a| to_f64(a.get())), 3),
+                opt(r.backlash_tilt.map(|a| to_f64(a.get())), 3),
             ]);
             match r.torque_capacity {
                 Some(cap) if self.torque > cap => {
                     warnings.push_str(&format!(
                         "WARNING L = {} mm: {} N·m exceeds the stress-limited capacity {} N·m (σ = {} > σ_allow = {} MPa): the beams would yield\n",
-                        sig(f(r.length.get()), 4),
+                        sig(to_f64(r.length.get()), 4),
                         sig(t, 4),
-                        sig(f(cap.get()), 3),
+                        sig(to_f64(cap.get()), 3),
                         stress.map_or_else(|| "beyond range".to_string(), |s| format!("{} MPa", sig(s, 4))),
                         trim(sigma_allow),
                     ));
                 }
                 None => warnings.push_str(&format!(
                     "WARNING L = {} mm: the torque capacity is out of range of the model's format\n",
-                    sig(f(r.length.get()), 4)
+                    sig(to_f64(r.length.get()), 4)
                 )),
                 Some(_) => {}
             }
@@ -647,7 +652,7 @@ impl Report {
 /// The model computes I inside [`Design::new`] but does not expose it, so this one number
 /// is computed on the host in f64 from the model's r; no other output depends on it.
 pub fn second_moment_mm4(d: &Design) -> f64 {
-    let r = f(d.params().beam_radius.get());
+    let r = to_f64(d.params().beam_radius.get());
     std::f64::consts::PI * r.powi(4) / 4.0
 }
 
@@ -655,13 +660,13 @@ pub fn second_moment_mm4(d: &Design) -> f64 {
 pub fn header(d: &Design) -> String {
     let p = d.params();
     let preset = *p == DesignParams::PAPER;
-    let mm = |v: Length| format!("{} mm", trim(f(v.get())));
-    let gpa = |v: Stress| format!("{} GPa", trim(f(v.get()) / 1e3));
-    let rad = |a: Angle| f(a.get());
+    let mm = |v: Length| format!("{} mm", trim(to_f64(v.get())));
+    let gpa = |v: Stress| format!("{} GPa", trim(to_f64(v.get()) / 1e3));
+    let rad = |a: Angle| to_f64(a.get());
     let (l_min, l_max) = d.adjustable_range();
     let (k_soft, k_stiff) = d.stiffness_range(BeamModel::EulerBernoulli);
     let (kt_soft, kt_stiff) = d.stiffness_range(BeamModel::Timoshenko);
-    let ratio = |r: Ratio| trim(f(r.get()));
+    let ratio = |r: Ratio| trim(to_f64(r.get()));
     let mut s = format!(
         "Design{}\n",
         if preset {
@@ -678,11 +683,11 @@ pub fn header(d: &Design) -> String {
         gpa(p.youngs_modulus),
         gpa(p.shear_modulus),
         ratio(d.poisson_ratio()),
-        sig(f(d.shear_coefficient().get()), 4),
+        sig(to_f64(d.shear_coefficient().get()), 4),
     );
     s += &format!(
         "  σ_allow = {} MPa, l = {}, t_c = {}, μ = {}\n",
-        trim(f(p.allowable_stress.get())),
+        trim(to_f64(p.allowable_stress.get())),
         mm(p.beam_length),
         mm(p.clutch_thickness),
         ratio(p.friction),
@@ -691,13 +696,13 @@ pub fn header(d: &Design) -> String {
     s += &format!("  I = πr⁴/4 = {} mm⁴\n", sig(second_moment_mm4(d), 6));
     s += &format!(
         "  δ_max = σ_allow·l²/(3Er) = {} mm, θ_max = δ_max/l = {} rad (eq. 5)\n",
-        sig(f(d.max_tip_deflection().get()), 4),
+        sig(to_f64(d.max_tip_deflection().get()), 4),
         sig(rad(d.bending_capacity()), 4),
     );
     s += &format!(
         "  slot clearance c = θ_max·t_c = {} mm, slot radius r + c = {} mm (eq. 6)\n",
-        sig(f(d.slot_clearance().get()), 4),
-        sig(f(d.slot_radius().get()), 4),
+        sig(to_f64(d.slot_clearance().get()), 4),
+        sig(to_f64(d.slot_radius().get()), 4),
     );
     s += &format!(
         "  output free play φ_b = c/R = {} rad = {}°\n",
@@ -706,8 +711,8 @@ pub fn header(d: &Design) -> String {
     );
     s += &format!(
         "  adjustable range L ∈ [{}, {}] mm: k ∈ [{}, {}] N·m/rad (E–B), [{}, {}] N·m/rad (shear)\n",
-        trim(f(l_min.get())),
-        trim(f(l_max.get())),
+        trim(to_f64(l_min.get())),
+        trim(to_f64(l_max.get())),
         sig(k64(k_soft), 5),
         sig(k64(k_stiff), 5),
         sig(k64(kt_soft), 5),
@@ -780,7 +785,7 @@ impl Inverse {
     /// The JSON document (see the module docs).
     pub fn to_json(self) -> JsonInverse {
         let m = |fit: Fit| match fit {
-            Fit::At(l) => Some(si(f(l.get()) * 1e-3)),
+            Fit::At(l) => Some(si(to_f64(l.get()) * 1e-3)),
             _ => None,
         };
         JsonInverse {
@@ -807,15 +812,15 @@ impl Inverse {
             let (soft, stiff) = d.stiffness_range(m);
             let range = format!("[{}, {}] N·m/rad", sig(k64(soft), 5), sig(k64(stiff), 5));
             s += &match fit {
-                Fit::At(len) => format!("  {name}  L = {} mm\n", sig(f(len.get()), 5)),
+                Fit::At(len) => format!("  {name}  L = {} mm\n", sig(to_f64(len.get()), 5)),
                 Fit::TooSoft(end) => format!(
                     "  {name}  {NONE}: k = {k} N·m/rad is below the adjustable range {range}; nearest end: L = l = {} mm (softest), k = {} N·m/rad\n",
-                    trim(f(l.get())),
+                    trim(to_f64(l.get())),
                     sig(k64(end), 5)
                 ),
                 Fit::TooStiff(end) => format!(
                     "  {name}  {NONE}: k = {k} N·m/rad is above the adjustable range {range}; nearest end: L = t_c = {} mm (stiffest), k = {} N·m/rad\n",
-                    trim(f(t_c.get())),
+                    trim(to_f64(t_c.get())),
                     sig(k64(end), 5)
                 ),
                 Fit::Failed(e) => format!("  {name}  {NONE}: {e}\n"),
@@ -844,8 +849,8 @@ pub struct JsonDesign {
 impl JsonDesign {
     fn of(d: &Design) -> JsonDesign {
         let p = d.params();
-        let m = |v: Length| si(f(v.get()) * 1e-3);
-        let pa = |v: Stress| si(f(v.get()) * 1e6);
+        let m = |v: Length| si(to_f64(v.get()) * 1e-3);
+        let pa = |v: Stress| si(to_f64(v.get()) * 1e6);
         JsonDesign {
             beams: p.beams,
             beam_radius_m: m(p.beam_radius),

@@ -5,7 +5,8 @@
 //! [`CurrentSensor`]), together with the H-bridge motor driver the control loop drives
 //! ([`HBridge`]). Each board implements the sensor traits on its peripherals (the Nucleo
 //! on its timer encoder interface and ADC, the emulated boards on the simulated actuator)
-//! and hands the H-bridge its PWM channel and two pins.
+//! and hands the H-bridge its PWM channel and two pins. [`tick_io`] is the I/O of one
+//! control tick over these traits (sensors → servo input, servo demand → H-bridge).
 //!
 //! Everything is `no_std`, allocation-free and panic-free, and is unit-tested on the host
 //! against `embedded-hal-mock` (the exact pin and PWM transactions are checked).
@@ -14,6 +15,7 @@
 #![deny(missing_docs)]
 
 pub mod sim;
+pub mod tick_io;
 
 use embedded_hal::digital::{self, OutputPin};
 use embedded_hal::pwm::{self, SetDutyCycle};

@@ -1,29 +1,27 @@
 //! The H-bridge driver against embedded-hal-mock: the exact PWM and pin transactions, in
-//! order, for each operation.
+//! order, for each operation. Each test spells its transactions out in full so that it
+//! reads alone (`duplicates` pairs lists of the same shape: on purpose).
 
-use drivers::{BridgeError, BridgeState, HBridge};
-use embedded_hal_mock::eh1::digital::{Mock as PinMock, State, Transaction as Pin};
-use embedded_hal_mock::eh1::pwm::{Mock as PwmMock, Transaction as Pwm};
+mod common;
+
+use common::MockBridge;
+use drivers::{BridgeError, BridgeState};
+use embedded_hal_mock::eh1::digital::{State, Transaction as Pin};
+use embedded_hal_mock::eh1::pwm::Transaction as Pwm;
 use embedded_hal_mock::eh1::MockError;
 
 /// The timer's auto-reload: 20 kHz from 180 MHz is 9000 counts.
 const MAX: u16 = 9000;
 
 struct Rig {
-    bridge: HBridge<PwmMock, PinMock, PinMock>,
+    bridge: MockBridge,
 }
 
 /// Builds a bridge whose `new` transactions are followed by the given ones.
 fn rig(pwm_after: &[Pwm], dir_after: &[Pin], en_after: &[Pin]) -> Rig {
-    let mut pwm = vec![Pwm::set_duty_cycle(0)];
-    pwm.extend_from_slice(pwm_after);
-    let mut dir = vec![Pin::set(State::Low)];
-    dir.extend_from_slice(dir_after);
-    let mut en = vec![Pin::set(State::Low)];
-    en.extend_from_slice(en_after);
-    let bridge = HBridge::new(PwmMock::new(&pwm), PinMock::new(&dir), PinMock::new(&en))
-        .expect("mock pins do not fail");
-    Rig { bridge }
+    Rig {
+        bridge: common::bridge(pwm_after, dir_after, en_after),
+    }
 }
 
 impl Rig {
@@ -192,12 +190,6 @@ fn a_failing_enable_pin_still_turns_the_pwm_off_and_reports_the_error() {
     assert_eq!(r.bridge.state(), BridgeState::Disabled);
     let mut bridge = r.bridge;
     // Done without `release` (it would disable again): check the mocks consumed everything.
-    let pwm: &PwmMock = bridge.pwm();
-    let mut pwm = pwm.clone();
-    pwm.done();
-    let mut dir = bridge.dir().clone();
-    dir.done();
-    let mut en = bridge.en().clone();
-    en.done();
+    common::done(&bridge);
     assert_eq!(bridge.drive(1), Err(BridgeError::Disabled));
 }

@@ -1,8 +1,16 @@
 //! The log task's side: what the control tick hands over ([`LogItem`]) and how it is
 //! written to defmt ([`Reporter`]), including the scenario results and the final verdict
 //! of an emulated run.
+//!
+//! Results a tool checks are written as one machine-readable line each, besides the lines
+//! for people: `RESULT <record> <key>=<value> …`, values without spaces (decimal numbers,
+//! `0x` and 16 hex digits for a hash, kebab-case names, `true`/`false`). `xtask`'s
+//! `results` module reads them; the records and their keys are listed there.
 
-use crate::run::{RunConfig, SelfCheck};
+use crate::board::{self, Event};
+use crate::run_config::RunConfig;
+use crate::self_check::SelfCheck;
+use crate::tick::StepStats;
 use crate::timing::{SecondReport, CONTROL_HZ};
 use model::supervisor::Fault;
 
@@ -13,12 +21,10 @@ pub enum LogItem {
     Fault(Fault),
     /// One second of ticks on the independent clock.
     Second(SecondReport),
-    /// A scenario event (emulated boards).
-    #[cfg(feature = "qemu")]
-    Scenario(plant::scenario::ScenarioEvent),
-    /// The scenario ended: the control loop's cost accounting.
-    #[cfg(feature = "qemu")]
-    Costs(crate::control::StepStats),
+    /// A board event (a scenario's progress on the emulated boards).
+    Board(Event),
+    /// The board's last event was logged: the control loop's cost accounting.
+    Costs(StepStats),
 }
 
 /// Writes log items; on the emulated boards, collects the results and ends the run.
@@ -47,13 +53,23 @@ impl Reporter {
     /// Logs one item.
     pub fn log(&mut self, item: LogItem) {
         match item {
-            LogItem::Fault(f) => defmt::error!(
-                "FAULT {=str} (code {=u8}): value {=i32} at tick {=u32}; motor disabled",
-                f.code.name(),
-                f.code as u8,
-                f.value,
-                f.tick
-            ),
+            LogItem::Fault(f) => {
+                defmt::error!(
+                    "FAULT {=str} (code {=u8}): value {=i32} at tick {=u32}; motor disabled",
+                    f.code.name(),
+                    f.code as u8,
+                    f.value,
+                    f.tick
+                );
+                #[cfg(feature = "qemu")]
+                defmt::println!(
+                    "RESULT fault name={=str} code={=u8} value={=i32} tick={=u32}",
+                    f.code.name(),
+                    f.code as u8,
+                    f.value,
+                    f.tick
+                );
+            }
             LogItem::Second(report) => {
                 self.self_check.record(&report);
                 #[cfg(feature = "nucleo-f446re")]
@@ -66,7 +82,8 @@ impl Reporter {
                     report.dropped_reports,
                 );
                 // The emulated boards log a second only when it had an overrun (a long
-                // run would otherwise print a line per second).
+                // run would otherwise print a line per second). The same line at two defmt
+                // levels is two macro calls: `duplicates` pairs them, on purpose.
                 #[cfg(feature = "qemu")]
                 if report.overruns > 0 {
                     defmt::warn!(
@@ -81,14 +98,39 @@ impl Reporter {
                 if self.run.is_last_second(report.second) {
                     defmt::warn!("--seconds {=u32} reached: stopping", report.second);
                     let passed = self.timing_verdict(0);
-                    crate::board::exit(passed);
+                    board::exit(passed);
                 }
             }
-            #[cfg(feature = "qemu")]
-            LogItem::Scenario(ev) => self.scenario_event(ev),
-            #[cfg(feature = "qemu")]
+            LogItem::Board(ev) => self.board_event(ev),
             LogItem::Costs(stats) => self.finish(stats),
         }
+    }
+
+    /// The control loop's costs per tick, and the stack's high-water mark.
+    fn log_costs(&self, stats: &StepStats) {
+        let n = u64::from(stats.ticks.max(1));
+        let step_mean = (stats.step_sum / n) as u32;
+        let hooks_mean = (stats.hooks_sum / n) as u32;
+        defmt::info!(
+            "cost per tick over {=u32} ticks, sysclk counts: control step mean {=u32} max {=u32}; plant mean {=u32} max {=u32}",
+            stats.ticks,
+            step_mean,
+            stats.step_max,
+            hooks_mean,
+            stats.hooks_max
+        );
+        if let Some(shift) = self.run.icount_shift {
+            // One instruction takes 2^shift ns; SysTick counts at SYSCLK.
+            let per = |counts: u64| counts * 1_000_000_000 / (u64::from(board::SYSCLK_HZ) << shift);
+            defmt::println!(
+                "RESULT control_step insns_mean={=u64} insns_max={=u64} hooks_insns_mean={=u64} icount_shift={=u8}",
+                per(u64::from(step_mean)),
+                per(u64::from(stats.step_max)),
+                per(u64::from(hooks_mean)),
+                shift
+            );
+        }
+        crate::stack::log_high_water();
     }
 
     /// Logs the timing self-check: every complete second had [`CONTROL_HZ`] ticks and
@@ -100,6 +142,16 @@ impl Reporter {
             && v.max_ticks == CONTROL_HZ
             && v.overruns == expected_overruns
             && v.dropped_reports == 0;
+        defmt::println!(
+            "RESULT timing seconds={=u32} min_ticks={=u32} max_ticks={=u32} overruns={=u32} expected_overruns={=u32} dropped={=u32} passed={=bool}",
+            v.seconds,
+            v.min_ticks,
+            v.max_ticks,
+            v.overruns,
+            expected_overruns,
+            v.dropped_reports,
+            passed
+        );
         if passed {
             defmt::info!(
                 "timing: {=u32} s, {=u32} ticks in every second, {=u32} overruns (expected {=u32}), 0 log items dropped: passed",
@@ -123,10 +175,24 @@ impl Reporter {
     }
 }
 
+/// The real board has no events, and no run end to report.
+#[cfg(feature = "nucleo-f446re")]
+impl Reporter {
+    fn board_event(&mut self, event: Event) {
+        match event {}
+    }
+
+    fn finish(&mut self, stats: StepStats) -> ! {
+        self.log_costs(&stats);
+        board::exit(true)
+    }
+}
+
 #[cfg(feature = "qemu")]
 mod scenario_log {
     use super::Reporter;
-    use crate::control::StepStats;
+    use crate::board;
+    use crate::tick::StepStats;
     use plant::harness::Metrics;
     use plant::scenario::{Injection, ScenarioEvent, ScenarioId};
 
@@ -141,9 +207,10 @@ mod scenario_log {
         v.unwrap_or(f64::NAN)
     }
 
-    fn log_metrics(mm: i32, m: &Metrics) {
-        defmt::info!(
-            "L = {=i32} mm: overshoot {=f32} %, rise {=f32} s, settling {=f32} s, steady-state error {=f32} counts, peak stress {=f32} MPa ({=f32} of allowable), rms error {=f32} rad, torque-limited {=bool}, hash {=u64:#018x}",
+    fn log_metrics(index: u8, mm: i32, m: &Metrics) {
+        defmt::println!(
+            "RESULT segment index={=u8} clutch_mm={=i32} overshoot_pct={=f32} rise_s={=f32} settling_s={=f32} steady_state_error_counts={=f32} peak_stress_mpa={=f32} peak_stress_ratio={=f32} rms_error_rad={=f32} torque_limited={=bool} hash={=u64:#018x}",
+            index + 1,
             mm,
             r(m.overshoot_pct, 2),
             r(opt(m.rise_time_s), 3),
@@ -158,7 +225,7 @@ mod scenario_log {
     }
 
     impl Reporter {
-        pub(super) fn scenario_event(&mut self, ev: ScenarioEvent) {
+        pub(super) fn board_event(&mut self, ev: ScenarioEvent) {
             match ev {
                 ScenarioEvent::SegmentStart {
                     index,
@@ -166,8 +233,8 @@ mod scenario_log {
                     stiffness_nm_per_rad,
                     torque_capacity_nm,
                     tick,
-                } => defmt::info!(
-                    "setting {=u8}: L = {=i32} mm, k = {=f32} N·m/rad, torque capacity {=f32} N·m (from tick {=u32})",
+                } => defmt::println!(
+                    "RESULT setting index={=u8} clutch_mm={=i32} stiffness_nm_per_rad={=f32} torque_capacity_nm={=f32} from_tick={=u32}",
                     index + 1,
                     clutch_mm,
                     r(stiffness_nm_per_rad, 1),
@@ -192,7 +259,7 @@ mod scenario_log {
                     clutch_mm,
                     metrics,
                 } => {
-                    log_metrics(clutch_mm, &metrics);
+                    log_metrics(index, clutch_mm, &metrics);
                     if let Some(slot) = self.results.get_mut(usize::from(index)) {
                         *slot = Some((clutch_mm, metrics));
                     }
@@ -204,7 +271,7 @@ mod scenario_log {
         pub(super) fn finish(&mut self, stats: StepStats) -> ! {
             let Some(s) = self.summary else {
                 defmt::error!("scenario ended without a summary");
-                crate::board::exit(false)
+                board::exit(false)
             };
             if s.id == ScenarioId::StepSweep {
                 defmt::info!("step sweep (0.5 rad raw step, 0.3 N·m load, J_link = 1e-3 kg·m²):");
@@ -221,43 +288,12 @@ mod scenario_log {
                     );
                 }
             }
-            let n = u64::from(stats.ticks.max(1));
-            let step_mean = (stats.step_sum / n) as u32;
-            let world_mean = (stats.world_sum / n) as u32;
-            defmt::info!(
-                "cost per tick over {=u32} ticks, sysclk counts: control step mean {=u32} max {=u32}; plant mean {=u32} max {=u32}",
-                stats.ticks,
-                step_mean,
-                stats.step_max,
-                world_mean,
-                stats.world_max
-            );
-            if let Some(shift) = self.run.icount_shift {
-                // One instruction takes 2^shift ns; SysTick counts at SYSCLK.
-                let per = |counts: u64| {
-                    counts * 1_000_000_000 / (u64::from(crate::board::SYSCLK_HZ) << shift)
-                };
-                defmt::info!(
-                    "control step: mean {=u64} instructions, max {=u64} instructions (icount shift {=u8}; plant mean {=u64})",
-                    per(u64::from(step_mean)),
-                    per(u64::from(stats.step_max)),
-                    shift,
-                    per(u64::from(world_mean))
-                );
-            }
-            let st = crate::stack::high_water();
-            defmt::info!(
-                "stack: high-water {=u32} bytes of {=u32} bytes (boot {=u32}, running {=u32})",
-                st.peak,
-                st.size,
-                st.boot,
-                st.running
-            );
+            self.log_costs(&stats);
             let fault = s.first_fault.map_or("none", |(c, _)| c.name());
             let fault_tick = s.first_fault.map_or(0, |(_, t)| t);
             let passed_scenario = s.passed();
-            defmt::info!(
-                "scenario {=str}: {=u32} ticks, hash {=u64:#018x}, first fault {=str} at tick {=u32}, injected at tick {=u32}, condition at tick {=u32}, ticks driven after the fault {=u32}, bridge enabled after the fault {=u32}",
+            defmt::println!(
+                "RESULT scenario name={=str} ticks={=u32} hash={=u64:#018x} first_fault={=str} fault_tick={=u32} inject_tick={=u32} condition_tick={=u32} driven_after_fault={=u32} bridge_on_after_fault={=u32} passed={=bool}",
                 s.id.name(),
                 s.ticks,
                 s.hash,
@@ -266,7 +302,8 @@ mod scenario_log {
                 s.inject_tick.unwrap_or(0),
                 s.condition_tick.unwrap_or(0),
                 s.driven_after_fault,
-                s.lines_on_after_fault
+                s.lines_on_after_fault,
+                passed_scenario
             );
             let expected_overruns = u32::from(s.id == ScenarioId::Overrun);
             let timing = self.timing_verdict(expected_overruns);
@@ -275,7 +312,7 @@ mod scenario_log {
             } else {
                 defmt::error!("scenario {=str} FAILED", s.id.name());
             }
-            crate::board::exit(passed_scenario && timing)
+            board::exit(passed_scenario && timing)
         }
     }
 }

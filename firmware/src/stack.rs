@@ -89,9 +89,7 @@ fn used() -> u32 {
     (top - p) as u32
 }
 
-/// Stack high-water marks, bytes. (Logged by the emulated boards and the bench crate's
-/// control-only image, which shares this file; the real board has no run end to log it at.)
-#[allow(dead_code)]
+/// Stack high-water marks, bytes.
 pub struct HighWater {
     /// The deepest the stack has been since boot.
     pub peak: u32,
@@ -104,7 +102,6 @@ pub struct HighWater {
 }
 
 /// The high-water marks so far.
-#[allow(dead_code)]
 pub fn high_water() -> HighWater {
     let boot = BOOT_PEAK.load(Ordering::Relaxed);
     let running = used();
@@ -114,4 +111,16 @@ pub fn high_water() -> HighWater {
         running,
         size: (top() - bottom()) as u32,
     }
+}
+
+/// Logs the high-water marks so far as one `RESULT stack` line (see `report`).
+pub fn log_high_water() {
+    let st = high_water();
+    defmt::println!(
+        "RESULT stack peak={=u32} size={=u32} boot={=u32} running={=u32}",
+        st.peak,
+        st.size,
+        st.boot,
+        st.running
+    );
 }

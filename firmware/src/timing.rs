@@ -1,4 +1,5 @@
-//! Tick timing: SysTick set-up, missed-deadline accounting and the defmt timestamp.
+//! Tick timing: SysTick set-up, missed-deadline accounting and the time for the defmt
+//! timestamp.
 //!
 //! The control period is SysTick at [`CONTROL_HZ`]. Each second of the board's
 //! *independent* clock (a free-running µs timer, see `board::IndependentClock`) the
@@ -43,9 +44,10 @@ pub fn publish_tick(ticks: u32) {
 }
 
 /// Time since SysTick started, µs: whole ticks from the counter plus the part of the
-/// current period. Called by defmt inside its critical section, so the tick count cannot
-/// advance underneath; a reload that is pending but not yet served counts as one tick.
-fn uptime_us() -> u64 {
+/// current period. Called by defmt inside its critical section (the program's
+/// `defmt::timestamp!`), so the tick count cannot advance underneath; a reload that is
+/// pending but not yet served counts as one tick.
+pub fn uptime_us() -> u64 {
     let ticks = u64::from(TICKS.load(Ordering::Relaxed));
     let reload = SYST::get_reload();
     let current = SYST::get_current();
@@ -54,8 +56,6 @@ fn uptime_us() -> u64 {
     let in_period = u64::from(reload.saturating_sub(current)) / counts_per_us;
     (ticks + pending) * 1000 + in_period
 }
-
-defmt::timestamp!("{=u64:us}", uptime_us());
 
 /// What one second of control ticks looked like.
 #[derive(Clone, Copy, defmt::Format)]
@@ -81,6 +81,12 @@ pub struct TickAccounting {
     overruns_in_window: u32,
     busy_max_counts: u32,
     dropped_reports: u32,
+}
+
+impl Default for TickAccounting {
+    fn default() -> Self {
+        Self::new()
+    }
 }
 
 impl TickAccounting {

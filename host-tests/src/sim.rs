@@ -5,7 +5,7 @@ use model::control::{Command, Config};
 use model::{Angle, Frequency, Length};
 use plant::harness::{self, Metrics, Sample, Scenario};
 
-pub use plant::harness::COUNT_RAD;
+pub use plant::ENCODER_COUNT_RAD as COUNT_RAD;
 
 /// The step of the acceptance tests, rad.
 pub const STEP_RAD: &str = "0.5";

@@ -30,7 +30,7 @@ fn beam_functions_agree_within_1e5() {
     }
 }
 
-/// The command the bench gives at `tick` of a segment (see `bench/src/main.rs`).
+/// The command the bench gives at `tick` of a segment (see `firmware/src/bin/vsa-bench.rs`).
 fn command_at(tick: u32) -> Option<Command> {
     match tick {
         300 => Some(Command::Step {

@@ -11,10 +11,10 @@
 //!
 //! All but θ_b(x) are design constants, computed in [`Design::new`].
 
-use crate::beam::{ov, torque_from, Setting};
+use crate::beam::{or_overflow, torque_from, Setting};
 use crate::design::Design;
 use crate::error::{Error, Result};
-use crate::fixmath::Scale;
+use crate::fixmath::SoftFloat;
 use crate::units::{Angle, Length, Torque};
 
 impl Design {
@@ -57,10 +57,10 @@ impl Design {
         if x < p.clutch_thickness || x > p.beam_length {
             return Err(Error::BacklashPositionOutOfRange);
         }
-        let xs = Scale::from_bits(x.to_bits(), 32).0;
+        let xs = SoftFloat::from_bits(x.to_bits(), 32).0;
         // θ_b ≤ θ_max: cannot overflow.
-        Ok(Angle::from_bits(ov(
-            ov(self.clearance_s.div(xs))?.to_i64(32, false)
+        Ok(Angle::from_bits(or_overflow(
+            or_overflow(self.clearance_s.div(xs))?.to_i64(32, false), // eq. 7: c/x = θ_max·t_c/x
         )?))
     }
 }
@@ -73,8 +73,8 @@ impl Setting {
     }
 
     /// |φ| − φ_b clamped at 0 (the deflection the beams see), and the sign of φ.
-    pub(crate) const fn beyond_free_play(&self, phi: Angle) -> (Scale, bool) {
-        let (mag, negative) = Scale::from_bits(phi.to_bits(), 32);
+    pub(crate) const fn beyond_free_play(&self, phi: Angle) -> (SoftFloat, bool) {
+        let (mag, negative) = SoftFloat::from_bits(phi.to_bits(), 32);
         (mag.saturating_sub(self.free_play), negative)
     }
 
@@ -86,7 +86,7 @@ impl Setting {
     /// [`Error::Overflow`] if |τ| ≥ 2³¹ N·m.
     pub fn coupling_torque(&self, phi: Angle) -> Result<Torque> {
         let (d, negative) = self.beyond_free_play(phi);
-        torque_from(ov(self.k.mul(d))?, negative)
+        torque_from(or_overflow(self.k.mul(d))?, negative)
     }
 }
 
@@ -96,7 +96,7 @@ mod tests {
     use crate::beam::BeamModel;
     use fixed::types::I32F32;
 
-    fn f(a: Angle) -> f64 {
+    fn to_f64(a: Angle) -> f64 {
         a.get().to_num::<f64>()
     }
 
@@ -104,15 +104,15 @@ mod tests {
     fn paper_backlash() {
         let d = Design::paper();
         assert!((d.max_tip_deflection().get().to_num::<f64>() - 0.32).abs() < 1e-9);
-        assert!((f(d.bending_capacity()) - 0.04).abs() < 1e-9);
+        assert!((to_f64(d.bending_capacity()) - 0.04).abs() < 1e-9);
         assert!((d.slot_clearance().get().to_num::<f64>() - 0.04).abs() < 1e-9);
         assert!((d.slot_radius().get().to_num::<f64>() - 0.54).abs() < 1e-9);
         let r = I32F32::lit("7.8").to_num::<f64>();
-        assert!((f(d.free_play()) - 0.04 / r).abs() < 1e-9);
+        assert!((to_f64(d.free_play()) - 0.04 / r).abs() < 1e-9);
         // θ_b(t_c) = θ_max, θ_b(l) = θ_max·t_c/l.
-        assert!((f(d.tilt_backlash(Length::from_int(1)).unwrap()) - 0.04).abs() < 1e-9);
-        assert!((f(d.tilt_backlash(Length::from_int(8)).unwrap()) - 0.005).abs() < 1e-9);
-        assert!((f(d.tilt_backlash(Length::from_int(5)).unwrap()) - 0.008).abs() < 1e-9);
+        assert!((to_f64(d.tilt_backlash(Length::from_int(1)).unwrap()) - 0.04).abs() < 1e-9);
+        assert!((to_f64(d.tilt_backlash(Length::from_int(8)).unwrap()) - 0.005).abs() < 1e-9);
+        assert!((to_f64(d.tilt_backlash(Length::from_int(5)).unwrap()) - 0.008).abs() < 1e-9);
     }
 
     #[test]

@@ -1,19 +1,13 @@
-//! Beam mechanics at a clutch length L (design.md §2 table).
-//!
-//! * stiffness k(L) = n·3·E·I·R²/L³ (paper eq. 4, Euler–Bernoulli) and
-//!   k_T(L) = n·R²/(L³/(3EI) + L/(κGA)) (row 4T, Timoshenko);
-//! * their inverses L(k): E–B in closed form, L = (n·3·E·I·R²/k)^(1/3), with the integer
-//!   cube root of [`crate::fixmath`]; Timoshenko by bisection on the monotone k_T(L);
-//! * deflection θ = τ/k (eqs. 1–3), per-beam force P = τ/(n·R), root stress σ = P·L·r/I,
-//!   stress-limited torque τ_cap(L) = n·R·σ_allow·I/(r·L) and deflection θ_cap = τ_cap/k;
-//! * [`Setting`]: everything above precomputed for one L and one model, for the 1 kHz loop.
+//! The beam model (Euler–Bernoulli or Timoshenko) and [`Setting`]: everything
+//! [`crate::stiffness`] and [`crate::stress`] compute at a clutch length, precomputed for
+//! one L and one model, for the 1 kHz loop (design.md §2 table).
 //!
 //! Domain of L: (0, l]; anything else is [`Error::ClutchLengthOutOfRange`]. Results that
 //! do not fit their format are [`Error::Overflow`] (e.g. k(L) for L → 0).
 
-use crate::design::{k_eb, k_timo, Design};
+use crate::design::Design;
 use crate::error::{Error, Result};
-use crate::fixmath::{icbrt_round, Scale};
+use crate::fixmath::SoftFloat;
 use crate::units::{Angle, Force, Frequency, Inertia, Length, Stiffness, Stress, Torque};
 
 /// Which beam theory gives the stiffness.
@@ -27,231 +21,13 @@ pub enum BeamModel {
     Timoshenko,
 }
 
-pub(crate) fn ov<T>(v: Option<T>) -> Result<T> {
+/// `v`, or [`Error::Overflow`] if the result left its format.
+pub(crate) fn or_overflow<T>(v: Option<T>) -> Result<T> {
     v.ok_or(Error::Overflow)
 }
 
-pub(crate) fn torque_from(s: Scale, negative: bool) -> Result<Torque> {
-    Ok(Torque::from_bits(ov(s.to_i64(32, negative))?))
-}
-
-/// How far above l (in I32F32 bits: 2⁻²⁰ of l, ≈ 1 ppm) an inverse may land and still be
-/// clamped to l: k(l) itself is rounded to I64F64, so L(k(l)) can exceed l by a few LSB.
-fn clamp_tolerance(l_bits: u128) -> u128 {
-    (l_bits >> 20).max(1)
-}
-
-impl BeamModel {
-    /// k(L) for this model: [`Design::stiffness`] or [`Design::stiffness_timoshenko`].
-    ///
-    /// # Errors
-    /// As the function it dispatches to.
-    pub fn stiffness(self, d: &Design, len: Length) -> Result<Stiffness> {
-        match self {
-            BeamModel::EulerBernoulli => d.stiffness(len),
-            BeamModel::Timoshenko => d.stiffness_timoshenko(len),
-        }
-    }
-
-    /// L(k) for this model: [`Design::clutch_length`] or
-    /// [`Design::clutch_length_timoshenko`].
-    ///
-    /// # Errors
-    /// As the function it dispatches to.
-    pub fn clutch_length(self, d: &Design, k: Stiffness) -> Result<Length> {
-        match self {
-            BeamModel::EulerBernoulli => d.clutch_length(k),
-            BeamModel::Timoshenko => d.clutch_length_timoshenko(k),
-        }
-    }
-}
-
-impl Design {
-    /// L as a `Scale`, checked against (0, l].
-    pub(crate) fn clutch(&self, len: Length) -> Result<Scale> {
-        let b = len.to_bits();
-        if b <= 0 || b > self.params().beam_length.to_bits() {
-            return Err(Error::ClutchLengthOutOfRange);
-        }
-        Ok(Scale::from_bits(b, 32).0)
-    }
-
-    pub(crate) fn k_scale(&self, model: BeamModel, len: Scale) -> Result<Scale> {
-        ov(match model {
-            BeamModel::EulerBernoulli => k_eb(self.c_k, len),
-            BeamModel::Timoshenko => k_timo(self.c_k, self.shear, len),
-        })
-    }
-
-    /// Joint stiffness k = n·3·E·I·R²/L³ (paper eq. 4), L ∈ (0, l].
-    ///
-    /// # Errors
-    /// [`Error::ClutchLengthOutOfRange`], or [`Error::Overflow`] if k ≥ 9.2e18 N·m/rad.
-    pub fn stiffness(&self, len: Length) -> Result<Stiffness> {
-        let l = self.clutch(len)?;
-        let k = self.k_scale(BeamModel::EulerBernoulli, l)?;
-        Ok(Stiffness::from_bits(ov(k.to_i128(64, false))?))
-    }
-
-    /// Shear-corrected joint stiffness k_T = n·R²/(L³/(3EI) + L/(κGA)) (Timoshenko, design.md
-    /// row 4T), L ∈ (0, l].
-    ///
-    /// # Errors
-    /// [`Error::ClutchLengthOutOfRange`], or [`Error::Overflow`] if k_T ≥ 9.2e18 N·m/rad.
-    pub fn stiffness_timoshenko(&self, len: Length) -> Result<Stiffness> {
-        let l = self.clutch(len)?;
-        let k = self.k_scale(BeamModel::Timoshenko, l)?;
-        Ok(Stiffness::from_bits(ov(k.to_i128(64, false))?))
-    }
-
-    /// `q = C/k` (= L³ for E–B, L³ + s·L for Timoshenko) in mm³.
-    fn cube_for(&self, k: Stiffness) -> Result<Scale> {
-        if k.to_bits() <= 0 {
-            return Err(Error::StiffnessNotPositive);
-        }
-        // An exponent overflow here means q is astronomically large: L far beyond l.
-        self.c_k.div(k.scale()).ok_or(Error::StiffnessTooLow)
-    }
-
-    /// Final checks of a clutch length in I32F32 bits: 0 → too stiff, within 1 ppm above l →
-    /// l, beyond → too soft.
-    fn finish_length(&self, bits: u128) -> Result<Length> {
-        let lb = self.params().beam_length.to_bits() as u128;
-        if bits == 0 {
-            return Err(Error::StiffnessTooHigh);
-        }
-        if bits > lb {
-            if bits - lb <= clamp_tolerance(lb) {
-                return Ok(self.params().beam_length);
-            }
-            return Err(Error::StiffnessTooLow);
-        }
-        Ok(Length::from_bits(bits as i64))
-    }
-
-    /// Clutch length for a wanted stiffness, E–B: L = (n·3·E·I·R²/k)^(1/3) (inverse of
-    /// eq. 4), rounded to the nearest LSB with an integer cube root.
-    ///
-    /// Domain: k > 0 with L(k) ∈ (0, l], i.e. k ≥ k(l). This is not limited to the
-    /// adjustable range [t_c, l]: see [`Design::tune`] for that.
-    ///
-    /// # Errors
-    /// [`Error::StiffnessNotPositive`] for k ≤ 0; [`Error::StiffnessTooLow`] if L > l
-    /// (more than 1 ppm: closer is clamped to l); [`Error::StiffnessTooHigh`] if L rounds
-    /// to 0 (for E–B only beyond [`Stiffness::MAX`]: every representable k has L ≥ 1.2e-8 mm
-    /// in the design domain; for Timoshenko, k_T ∝ 1/L at short L, from about 1e14 N·m/rad).
-    pub fn clutch_length(&self, k: Stiffness) -> Result<Length> {
-        let q = self.cube_for(k)?;
-        // L bits = (L³·2⁹⁶)^(1/3); L³ ≥ 2³² mm³ means L > 1625 mm > l.
-        let x = q.to_u128(96).ok_or(Error::StiffnessTooLow)?;
-        self.finish_length(icbrt_round(x))
-    }
-
-    /// Clutch length for a wanted stiffness, Timoshenko: the L ∈ (0, l] with k_T(L) = k,
-    /// found by bisection on L³ + s·L = n·3·E·I·R²/k (monotone in L) to the nearest LSB.
-    ///
-    /// # Errors
-    /// As [`Design::clutch_length`].
-    pub fn clutch_length_timoshenko(&self, k: Stiffness) -> Result<Length> {
-        let q = self.cube_for(k)?;
-        let lb = self.params().beam_length.to_bits() as u128;
-        // g(L) = L·(L² + s), L = bits·2^-frac.
-        let g = |bits: u128, frac: i64| -> Result<Scale> {
-            let len = ov(Scale::from_u128(bits, -frac))?;
-            ov(ov(ov(len.mul(len))?.add(self.shear))?.mul(len))
-        };
-        let mut lo: u128 = 0;
-        let mut hi = lb + clamp_tolerance(lb);
-        if g(hi, 32)?.lt(q) {
-            return Err(Error::StiffnessTooLow);
-        }
-        // Invariant: g(lo) ≤ q ≤ g(hi).
-        while hi - lo > 1 {
-            let mid = lo + (hi - lo) / 2;
-            if q.lt(g(mid, 32)?) {
-                hi = mid;
-            } else {
-                lo = mid;
-            }
-        }
-        // Nearest of lo, hi: compare q with g at the half-LSB point.
-        let best = if q.lt(g(2 * lo + 1, 33)?) { lo } else { hi };
-        self.finish_length(best)
-    }
-
-    /// Joint deflection θ = τ/k(L) (paper eqs. 1–3, E–B), computed as τ·L³/(n·3·E·I·R²)
-    /// (products only). For the Timoshenko model use [`Setting::deflection`].
-    ///
-    /// # Errors
-    /// [`Error::ClutchLengthOutOfRange`], [`Error::Overflow`] if |θ| ≥ 2³¹ rad.
-    pub fn deflection(&self, torque: Torque, len: Length) -> Result<Angle> {
-        let l = self.clutch(len)?;
-        let l3 = ov(ov(l.mul(l))?.mul(l))?;
-        let per_torque = ov(l3.mul(self.inv_c_k))?;
-        Ok(Angle::from_bits(ov(per_torque.mul_i64(torque.to_bits()))?))
-    }
-
-    /// Load on each beam, P = τ/(n·R) (τ shared by n beams at radius R), via a
-    /// precomputed 1/(n·R).
-    ///
-    /// # Errors
-    /// [`Error::Overflow`] if |P| ≥ 2³¹ N.
-    pub fn beam_force(&self, torque: Torque) -> Result<Force> {
-        Ok(Force::from_bits(ov(self
-            .force_per_torque
-            .mul_i64(torque.to_bits()))?))
-    }
-
-    /// Bending stress at the beam root, σ = P·L·r/I with P = τ/(n·R), signed like τ.
-    ///
-    /// # Errors
-    /// [`Error::ClutchLengthOutOfRange`], [`Error::Overflow`] if |σ| ≥ 2³¹ MPa.
-    pub fn root_stress(&self, torque: Torque, len: Length) -> Result<Stress> {
-        let l = self.clutch(len)?;
-        let per_torque = ov(self.stress_coef.mul(l))?;
-        Ok(Stress::from_bits(ov(per_torque.mul_i64(torque.to_bits()))?))
-    }
-
-    /// Stress-limited torque capacity τ_cap(L) = n·R·σ_allow·I/(r·L): the torque at which
-    /// the root stress reaches σ_allow.
-    ///
-    /// # Errors
-    /// [`Error::ClutchLengthOutOfRange`], [`Error::Overflow`] if τ_cap ≥ 2³¹ N·m.
-    pub fn torque_capacity(&self, len: Length) -> Result<Torque> {
-        let l = self.clutch(len)?;
-        torque_from(ov(self.cap_coef.div(l))?, false)
-    }
-
-    /// Deflection at the stress limit, θ_cap = τ_cap/k = σ_allow·L²/(3·E·r·R) (E–B).
-    ///
-    /// # Errors
-    /// [`Error::ClutchLengthOutOfRange`], [`Error::Overflow`] if θ_cap ≥ 2³¹ rad.
-    pub fn deflection_capacity(&self, len: Length) -> Result<Angle> {
-        let l = self.clutch(len)?;
-        let v = ov(self.theta_cap_coef.mul(ov(l.mul(l))?))?;
-        Ok(Angle::from_bits(ov(v.to_i64(32, false))?))
-    }
-
-    /// Deflection at the stress limit with the Timoshenko stiffness,
-    /// θ_cap = τ_cap/k_T = σ_allow·(L² + s)/(3·E·r·R) (s: see [`crate::design`]).
-    ///
-    /// # Errors
-    /// As [`Design::deflection_capacity`].
-    pub fn deflection_capacity_timoshenko(&self, len: Length) -> Result<Angle> {
-        let l = self.clutch(len)?;
-        let v = ov(self.theta_cap_coef.mul(ov(ov(l.mul(l))?.add(self.shear))?))?;
-        Ok(Angle::from_bits(ov(v.to_i64(32, false))?))
-    }
-
-    /// Stiffness at both ends of the adjustable range, `(k(l), k(t_c))`: the softest and
-    /// the stiffest setting (precomputed).
-    #[must_use]
-    pub const fn stiffness_range(&self, model: BeamModel) -> (Stiffness, Stiffness) {
-        match model {
-            BeamModel::EulerBernoulli => self.range_eb,
-            BeamModel::Timoshenko => self.range_t,
-        }
-    }
+pub(crate) fn torque_from(s: SoftFloat, negative: bool) -> Result<Torque> {
+    Ok(Torque::from_bits(or_overflow(s.to_i64(32, negative))?))
 }
 
 /// One clutch setting: a design at a clutch length L with a beam model, with every
@@ -266,20 +42,20 @@ pub struct Setting {
     pub(crate) model: BeamModel,
     pub(crate) stiffness: Stiffness,
     /// k (N·m/rad).
-    pub(crate) k: Scale,
+    pub(crate) k: SoftFloat,
     /// 1/k (rad per N·m).
-    pub(crate) inv_k: Scale,
+    pub(crate) inv_k: SoftFloat,
     /// 10³/(n·R) (N per N·m).
-    pub(crate) force_per_torque: Scale,
+    pub(crate) force_per_torque: SoftFloat,
     /// 10³·L·r/(n·R·I) (MPa per N·m).
-    pub(crate) stress_per_torque: Scale,
+    pub(crate) stress_per_torque: SoftFloat,
     pub(crate) torque_capacity: Torque,
     pub(crate) deflection_capacity: Angle,
     /// φ_b (rad).
-    pub(crate) free_play: Scale,
+    pub(crate) free_play: SoftFloat,
     pub(crate) free_play_angle: Angle,
     /// a = (6/5)·μ·R/L (1/rad).
-    pub(crate) friction: Scale,
+    pub(crate) friction: SoftFloat,
     pub(crate) tilt_backlash: Option<Angle>,
 }
 
@@ -292,7 +68,7 @@ impl Setting {
     pub fn new(design: &Design, len: Length, model: BeamModel) -> Result<Setting> {
         let l = design.clutch(len)?;
         let k = design.k_scale(model, l)?;
-        let stiffness = Stiffness::from_bits(ov(k.to_i128(64, false))?);
+        let stiffness = Stiffness::from_bits(or_overflow(k.to_i128(64, false))?);
         let deflection_capacity = match model {
             BeamModel::EulerBernoulli => design.deflection_capacity(len)?,
             BeamModel::Timoshenko => design.deflection_capacity_timoshenko(len)?,
@@ -302,14 +78,14 @@ impl Setting {
             model,
             stiffness,
             k,
-            inv_k: ov(k.recip())?,
+            inv_k: or_overflow(k.recip())?,
             force_per_torque: design.force_per_torque,
-            stress_per_torque: ov(design.stress_coef.mul(l))?,
+            stress_per_torque: or_overflow(design.stress_coef.mul(l))?,
             torque_capacity: design.torque_capacity(len)?,
             deflection_capacity,
             free_play: design.free_play_s,
             free_play_angle: design.free_play(),
-            friction: ov(design.friction_coef.div(l))?,
+            friction: or_overflow(design.friction_coef.div(l))?,
             tilt_backlash: design.tilt_backlash(len).ok(),
         })
     }

@@ -21,7 +21,8 @@
 use fixed::types::I32F32;
 
 use crate::error::{Error, Result};
-use crate::fixmath::{Scale, FRAC_PI_4, PI};
+use crate::fixmath::{SoftFloat, FRAC_PI_4, PI};
+use crate::stiffness::{k_eb, k_timo};
 use crate::units::{Angle, Length, Ratio, Stiffness, Stress};
 
 /// Smallest beam count n.
@@ -108,27 +109,27 @@ impl DesignParams {
 pub struct Design {
     params: DesignParams,
     /// l (mm).
-    pub(crate) l: Scale,
+    pub(crate) l: SoftFloat,
     /// C = n·3·E·I·R²/10³ (N·m·mm³) (k = C/L³).
-    pub(crate) c_k: Scale,
+    pub(crate) c_k: SoftFloat,
     /// 1/C (1/(N·m·mm³)).
-    pub(crate) inv_c_k: Scale,
+    pub(crate) inv_c_k: SoftFloat,
     /// s = I·(1 + 3E/G)/A (mm²) (k_T = C/(L³ + s·L)).
-    pub(crate) shear: Scale,
+    pub(crate) shear: SoftFloat,
     /// 10³/(n·R) (N per N·m) (P = τ/(n·R), R in mm).
-    pub(crate) force_per_torque: Scale,
+    pub(crate) force_per_torque: SoftFloat,
     /// 10³·r/(n·R·I) (MPa per N·m per mm of L) (σ = P·L·r/I).
-    pub(crate) stress_coef: Scale,
+    pub(crate) stress_coef: SoftFloat,
     /// n·R·σ_allow·I/(10³·r) (N·m·mm) (τ_cap = this / L).
-    pub(crate) cap_coef: Scale,
+    pub(crate) cap_coef: SoftFloat,
     /// σ_allow/(3·E·r·R) (1/mm²) (θ_cap = this·L² E–B, this·(L² + s) Timoshenko).
-    pub(crate) theta_cap_coef: Scale,
+    pub(crate) theta_cap_coef: SoftFloat,
     /// c (mm).
-    pub(crate) clearance_s: Scale,
+    pub(crate) clearance_s: SoftFloat,
     /// φ_b (rad).
-    pub(crate) free_play_s: Scale,
+    pub(crate) free_play_s: SoftFloat,
     /// (6/5)·μ·R (mm) (hysteresis a = this / L (1/rad)).
-    pub(crate) friction_coef: Scale,
+    pub(crate) friction_coef: SoftFloat,
     pub(crate) max_tip_deflection: Length,
     pub(crate) bending_capacity: Angle,
     pub(crate) clearance: Length,
@@ -142,7 +143,7 @@ pub struct Design {
 }
 
 /// Unwraps an `Option` in a `const fn`, mapping `None` to [`Error::Overflow`].
-macro_rules! tri {
+macro_rules! some_or_overflow {
     ($e:expr) => {
         match $e {
             Some(v) => v,
@@ -155,43 +156,18 @@ const fn within(v: i64, lo: i64, hi: i64) -> bool {
     v >= lo && v <= hi
 }
 
-/// A positive I32F32 length/stress/ratio as a `Scale` (exact).
-const fn pos(bits: i64) -> Scale {
-    Scale::from_bits(bits, 32).0
+/// A positive I32F32 length/stress/ratio as a `SoftFloat` (exact).
+const fn pos(bits: i64) -> SoftFloat {
+    SoftFloat::from_bits(bits, 32).0
 }
 
-const fn to_fix(s: Scale) -> Option<i64> {
+const fn to_fix(s: SoftFloat) -> Option<i64> {
     s.to_i64(32, false)
 }
 
-const fn to_stiffness(s: Scale) -> Option<Stiffness> {
+const fn to_stiffness(s: SoftFloat) -> Option<Stiffness> {
     match s.to_i128(64, false) {
         Some(b) => Some(Stiffness::from_bits(b)),
-        None => None,
-    }
-}
-
-/// k = C/L³ = (C/L)/L² (two roundings).
-pub(crate) const fn k_eb(c_k: Scale, len: Scale) -> Option<Scale> {
-    match c_k.div(len) {
-        Some(q) => match len.mul(len) {
-            Some(l2) => q.div(l2),
-            None => None,
-        },
-        None => None,
-    }
-}
-
-/// k_T = C/(L³ + s·L) = (C/L)/(L² + s).
-pub(crate) const fn k_timo(c_k: Scale, shear: Scale, len: Scale) -> Option<Scale> {
-    match c_k.div(len) {
-        Some(q) => match len.mul(len) {
-            Some(l2) => match l2.add(shear) {
-                Some(d) => q.div(d),
-                None => None,
-            },
-            None => None,
-        },
         None => None,
     }
 }
@@ -258,64 +234,85 @@ impl Design {
             return Err(Error::FrictionOutOfRange);
         }
 
-        let n = Scale::from_u64(p.beams as u64);
-        let three = Scale::from_u64(3);
-        let thousand = Scale::from_u64(1000);
+        let n = SoftFloat::from_u64(p.beams as u64);
+        let three = SoftFloat::from_u64(3);
+        let thousand = SoftFloat::from_u64(1000);
         let (r, big_r, e, g) = (pos(rb), pos(pb), pos(eb), pos(gb));
         let (sigma, l, tc) = (pos(sb), pos(lb), pos(tb));
         let mu = pos(p.friction.to_bits());
 
         // Section properties.
-        let r2 = tri!(r.mul(r));
-        let i = tri!(tri!(r2.mul(r2)).mul(FRAC_PI_4));
-        let area = tri!(r2.mul(PI));
-        let nr = tri!(n.mul(big_r));
+        let r2 = some_or_overflow!(r.mul(r));
+        let i = some_or_overflow!(some_or_overflow!(r2.mul(r2)).mul(FRAC_PI_4));
+        let area = some_or_overflow!(r2.mul(PI));
+        let nr = some_or_overflow!(n.mul(big_r));
 
         // Paper eq. 4: C = n·3·E·I·R² in N·mm³·mm, /1000 for N·m with L in mm.
-        let c_k = tri!(tri!(
-            tri!(tri!(tri!(n.mul(three)).mul(e)).mul(i)).mul(tri!(big_r.mul(big_r)))
-        )
-        .div(thousand));
-        let inv_c_k = tri!(c_k.recip());
+        let c_k = some_or_overflow!(
+            // eq. 4
+            some_or_overflow!(some_or_overflow!(some_or_overflow!(
+                some_or_overflow!(n.mul(three)).mul(e)
+            )
+            .mul(i))
+            .mul(some_or_overflow!(big_r.mul(big_r))))
+            .div(thousand)
+        );
+        let inv_c_k = some_or_overflow!(c_k.recip());
 
         // Row 4T: with κ = 3E/(G+3E), L/(κGA) = L·(1 + 3E/G)/(3EA), hence
         // k_T = C/(L³ + s·L), s = (I/A)·(1 + 3E/G).
-        let e_over_g = tri!(e.div(g));
-        let one_3eg = tri!(Scale::ONE.add(tri!(three.mul(e_over_g))));
-        let shear = tri!(tri!(i.div(area)).mul(one_3eg));
-        // ν = E/(2G) − 1 (in (−1, 0.5]), κ = 3E/G / (1 + 3E/G).
-        let half_eg = tri!(to_fix(tri!(e_over_g.div(Scale::from_u64(2)))));
+        let e_over_g = some_or_overflow!(e.div(g));
+        let one_3eg = some_or_overflow!(SoftFloat::ONE.add(some_or_overflow!(three.mul(e_over_g))));
+        let shear = some_or_overflow!(some_or_overflow!(i.div(area)).mul(one_3eg)); // eq. 4T
+                                                                                    // ν = E/(2G) − 1 (in (−1, 0.5]), κ = 3E/G / (1 + 3E/G).
+        let half_eg = some_or_overflow!(to_fix(some_or_overflow!(
+            e_over_g.div(SoftFloat::from_u64(2))
+        )));
         let poisson = Ratio::from_bits(half_eg - (1 << 32));
-        let shear_factor =
-            Ratio::from_bits(tri!(to_fix(tri!(tri!(three.mul(e_over_g)).div(one_3eg)))));
+        let shear_factor = Ratio::from_bits(some_or_overflow!(to_fix(some_or_overflow!(
+            some_or_overflow!(three.mul(e_over_g)).div(one_3eg)
+        ))));
 
         // P = τ/(n·R): τ in N·m, R in mm → 1000/(n·R) N per N·m.
-        let force_per_torque = tri!(thousand.div(nr));
-        // σ = P·L·r/I (N·mm·mm/mm⁴ = MPa).
-        let stress_coef = tri!(tri!(force_per_torque.mul(r)).div(i));
+        let force_per_torque = some_or_overflow!(thousand.div(nr)); // eq. 2
+                                                                    // σ = P·L·r/I (N·mm·mm/mm⁴ = MPa).
+        let stress_coef = some_or_overflow!(some_or_overflow!(force_per_torque.mul(r)).div(i));
         // τ_cap·L = n·R·σ_allow·I/r (N·mm·mm) / 1000 → N·m·mm.
-        let cap_coef = tri!(tri!(tri!(tri!(nr.mul(sigma)).mul(i)).div(r)).div(thousand));
+        let cap_coef = some_or_overflow!(some_or_overflow!(some_or_overflow!(some_or_overflow!(
+            nr.mul(sigma)
+        )
+        .mul(i))
+        .div(r))
+        .div(thousand));
         // θ_cap = τ_cap/k = σ_allow·L²/(3·E·r·R).
-        let theta_cap_coef = tri!(sigma.div(tri!(tri!(tri!(three.mul(e)).mul(r)).mul(big_r))));
+        let theta_cap_coef = some_or_overflow!(sigma.div(some_or_overflow!(some_or_overflow!(
+            some_or_overflow!(three.mul(e)).mul(r)
+        )
+        .mul(big_r))));
 
         // Paper eqs. 5–6 and the free play.
-        let theta_max = tri!(tri!(sigma.mul(l)).div(tri!(tri!(three.mul(e)).mul(r))));
-        let delta_max = tri!(theta_max.mul(l));
-        let clearance_s = tri!(theta_max.mul(tc));
-        let free_play_s = tri!(clearance_s.div(big_r));
-        let slot = tri!(r.add(clearance_s));
+        // eq. 5: θ_max = δ_max/l with δ_max = σ_allow·l²/(3·E·r).
+        let theta_max = some_or_overflow!(some_or_overflow!(sigma.mul(l))
+            .div(some_or_overflow!(some_or_overflow!(three.mul(e)).mul(r))));
+        let delta_max = some_or_overflow!(theta_max.mul(l));
+        let clearance_s = some_or_overflow!(theta_max.mul(tc)); // eq. 6
+        let free_play_s = some_or_overflow!(clearance_s.div(big_r));
+        let slot = some_or_overflow!(r.add(clearance_s)); // eq. 6
 
         // §2.1: a(L) = (6/5)·μ·δ/L per unit φ with δ = R·φ.
-        let friction_coef =
-            tri!(tri!(tri!(Scale::from_u64(6).mul(mu)).mul(big_r)).div(Scale::from_u64(5)));
+        let friction_coef = some_or_overflow!(some_or_overflow!(some_or_overflow!(
+            SoftFloat::from_u64(6).mul(mu)
+        )
+        .mul(big_r))
+        .div(SoftFloat::from_u64(5)));
 
         let range_eb = (
-            tri!(to_stiffness(tri!(k_eb(c_k, l)))),
-            tri!(to_stiffness(tri!(k_eb(c_k, tc)))),
+            some_or_overflow!(to_stiffness(some_or_overflow!(k_eb(c_k, l)))),
+            some_or_overflow!(to_stiffness(some_or_overflow!(k_eb(c_k, tc)))),
         );
         let range_t = (
-            tri!(to_stiffness(tri!(k_timo(c_k, shear, l)))),
-            tri!(to_stiffness(tri!(k_timo(c_k, shear, tc)))),
+            some_or_overflow!(to_stiffness(some_or_overflow!(k_timo(c_k, shear, l)))),
+            some_or_overflow!(to_stiffness(some_or_overflow!(k_timo(c_k, shear, tc)))),
         );
 
         Ok(Design {
@@ -331,11 +328,11 @@ impl Design {
             clearance_s,
             free_play_s,
             friction_coef,
-            max_tip_deflection: Length::from_bits(tri!(to_fix(delta_max))),
-            bending_capacity: Angle::from_bits(tri!(to_fix(theta_max))),
-            clearance: Length::from_bits(tri!(to_fix(clearance_s))),
-            slot_radius: Length::from_bits(tri!(to_fix(slot))),
-            free_play: Angle::from_bits(tri!(to_fix(free_play_s))),
+            max_tip_deflection: Length::from_bits(some_or_overflow!(to_fix(delta_max))),
+            bending_capacity: Angle::from_bits(some_or_overflow!(to_fix(theta_max))),
+            clearance: Length::from_bits(some_or_overflow!(to_fix(clearance_s))),
+            slot_radius: Length::from_bits(some_or_overflow!(to_fix(slot))),
+            free_play: Angle::from_bits(some_or_overflow!(to_fix(free_play_s))),
             poisson,
             shear_factor,
             range_eb,

@@ -9,13 +9,13 @@
 //! the adjustable range [t_c, l] (stiffness range [k(l), k(t_c)]), and which end is
 //! nearest.
 
-use crate::beam::{ov, BeamModel};
+use crate::beam::{or_overflow, BeamModel};
 use crate::design::Design;
 use crate::error::{Error, Result};
-use crate::fixmath::{isqrt, Scale};
+use crate::fixmath::{isqrt, SoftFloat};
 use crate::units::{Frequency, Inertia, Length, Stiffness};
 
-const MEGA: Scale = Scale::from_u64(1_000_000);
+const MEGA: SoftFloat = SoftFloat::from_u64(1_000_000);
 
 /// Natural frequency ω_n = √(k/J) of a link of inertia `inertia` on stiffness `k`.
 ///
@@ -31,12 +31,12 @@ pub fn natural_frequency(k: Stiffness, inertia: Inertia) -> Result<Frequency> {
     if inertia.to_bits() <= 0 {
         return Err(Error::InertiaNotPositive);
     }
-    let j = Scale::from_bits(inertia.to_bits(), 32).0;
-    let w2 = ov(ov(k.scale().mul(MEGA))?.div(j))?;
+    let j = SoftFloat::from_bits(inertia.to_bits(), 32).0;
+    let w2 = or_overflow(or_overflow(k.magnitude().mul(MEGA))?.div(j))?;
     // ω bits = √(ω²·2⁶⁴). Take the root of ω²·2⁶⁶ (one more bit of ω) and round that bit
     // off: rounding ω² to an integer first and then the root would round twice, which at
     // ω of a few LSB lands a whole LSB off. ω < 2³¹ ⟺ ω²·2⁶⁶ < 2¹²⁸ (else `None`).
-    let x = ov(w2.to_u128(66))?;
+    let x = or_overflow(w2.to_u128(66))?;
     let (twice_omega_bits, _) = isqrt(x);
     let omega_bits = (twice_omega_bits + 1) >> 1;
     if omega_bits > i64::MAX as u128 {
@@ -59,10 +59,11 @@ pub fn stiffness_for_frequency(inertia: Inertia, omega: Frequency) -> Result<Sti
     if omega.to_bits() <= 0 {
         return Err(Error::FrequencyNotPositive);
     }
-    let j = Scale::from_bits(inertia.to_bits(), 32).0;
-    let w = Scale::from_bits(omega.to_bits(), 32).0;
-    let k = ov(ov(ov(j.mul(w))?.mul(w))?.div(MEGA))?;
-    Ok(Stiffness::from_bits(ov(k.to_i128(64, false))?))
+    let j = SoftFloat::from_bits(inertia.to_bits(), 32).0;
+    let w = SoftFloat::from_bits(omega.to_bits(), 32).0;
+    let jw = or_overflow(j.mul(w))?;
+    let k = or_overflow(or_overflow(jw.mul(w))?.div(MEGA))?;
+    Ok(Stiffness::from_bits(or_overflow(k.to_i128(64, false))?))
 }
 
 /// The clutch setting for a wanted natural frequency, or why there is none.

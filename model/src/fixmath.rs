@@ -1,17 +1,18 @@
-//! Integer-only numerics: square and cube roots, and `Scale`, the block-floating
-//! constant that carries the design's derived constants.
+//! Integer-only numerics: square and cube roots, and `SoftFloat`, the positive software
+//! floating-point number (64-bit mantissa, 32-bit exponent) that carries the design's
+//! derived constants.
 //!
 //! * [`icbrt`] / [`icbrt_round`]: bitwise (digit-by-digit) cube root of a `u128`. The
 //!   inverse of paper eq. 4, `L = (n·3·E·I·R² / k)^(1/3)`, takes it on `L³` scaled by
 //!   2⁹⁶, which yields `L` directly in I32F32 bits (`fixed` has no cube root).
 //! * [`isqrt`] / [`isqrt_round`]: bitwise square root of a `u128`, used for the natural
 //!   frequency `ω_n = √(k/J)` (ω² scaled by 2⁶⁴ gives ω in I32F32 bits).
-//! * `Scale` (crate-internal): a positive number `m·2^e` with a normalised 64-bit `m`.
+//! * `SoftFloat` (crate-internal): a positive number `m·2^e` with a normalised 64-bit `m`.
 //!   The design spans ~22 decades (k from 1e-11 to 1e17 N·m/rad over the documented
 //!   domain), which no single fixed-point format covers with 1e-4 relative accuracy. Each
-//!   `Scale` operation rounds once at 2⁻⁶³ relative, so chains of products and quotients
+//!   `SoftFloat` operation rounds once at 2⁻⁶³ relative, so chains of products and quotients
 //!   stay far inside the accuracy budget; the result is rounded once into the public
-//!   fixed-point format. Applying a `Scale` to a fixed-point value (`Scale::mul_i64`) is
+//!   fixed-point format. Applying a `SoftFloat` to a fixed-point value (`SoftFloat::mul_i64`) is
 //!   one 64×64→128-bit multiply and a shift: that is the per-tick path, with every
 //!   division by a configuration value replaced by a precomputed reciprocal.
 //!
@@ -96,7 +97,7 @@ pub const fn icbrt_round(n: u128) -> u128 {
 }
 
 /// `(⌊a·2⁶⁴/d⌋, a·2⁶⁴ mod d)` for normalised `a`, `d` (top bit set): the quotient of
-/// [`Scale::div`], exactly as `((a as u128) << 64) / d` and `% d`.
+/// [`SoftFloat::div`], exactly as `((a as u128) << 64) / d` and `% d`.
 ///
 /// A 32-bit core has no 128-bit divide: the generic `u128` division is a library routine
 /// of thousands of instructions on a Cortex-M3. This is Knuth's algorithm D (TAOCP 4.3.1;
@@ -177,24 +178,24 @@ pub(crate) const fn div_normalised(a: u64, d: u64) -> (u128, u64) {
     (((top as u128) << 64) | q as u128, r)
 }
 
-/// Positive number `m·2^e`; `m = 0` is zero, otherwise `m ∈ [2⁶³, 2⁶⁴)` (normalised).
+/// Positive software floating-point number `m·2^e`; `m = 0` is zero, otherwise `m ∈ [2⁶³, 2⁶⁴)` (normalised).
 ///
 /// Every operation rounds to nearest once (relative error ≤ 2⁻⁶³) and returns `None` when
 /// the exponent leaves `i32` (never inside the documented domain) or on a division by
 /// zero. Subtraction exists only as a saturating variant (the crate never needs a negative
-/// `Scale`; signs are carried beside it).
+/// `SoftFloat`; signs are carried beside it).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) struct Scale {
+pub(crate) struct SoftFloat {
     m: u64,
     e: i32,
 }
 
-impl Scale {
-    pub(crate) const ZERO: Scale = Scale { m: 0, e: 0 };
-    pub(crate) const ONE: Scale = Scale { m: 1 << 63, e: -63 };
+impl SoftFloat {
+    pub(crate) const ZERO: SoftFloat = SoftFloat { m: 0, e: 0 };
+    pub(crate) const ONE: SoftFloat = SoftFloat { m: 1 << 63, e: -63 };
 
     /// `x·2^e`, rounded (half up) to 64 significant bits.
-    pub(crate) const fn from_u128(x: u128, e: i64) -> Option<Scale> {
+    pub(crate) const fn from_u128(x: u128, e: i64) -> Option<SoftFloat> {
         if x == 0 {
             return Some(Self::ZERO);
         }
@@ -215,16 +216,16 @@ impl Scale {
         if e < i32::MIN as i64 || e > i32::MAX as i64 {
             return None;
         }
-        Some(Scale { m, e: e as i32 })
+        Some(SoftFloat { m, e: e as i32 })
     }
 
     /// An integer, exactly.
-    pub(crate) const fn from_u64(v: u64) -> Scale {
+    pub(crate) const fn from_u64(v: u64) -> SoftFloat {
         if v == 0 {
             return Self::ZERO;
         }
         let lz = v.leading_zeros();
-        Scale {
+        SoftFloat {
             m: v << lz,
             e: -(lz as i32),
         }
@@ -232,14 +233,14 @@ impl Scale {
 
     /// Magnitude of a signed fixed-point value with `frac` fractional bits, exactly, and
     /// whether it was negative.
-    pub(crate) const fn from_bits(bits: i64, frac: u32) -> (Scale, bool) {
+    pub(crate) const fn from_bits(bits: i64, frac: u32) -> (SoftFloat, bool) {
         let u = bits.unsigned_abs();
         if u == 0 {
             return (Self::ZERO, false);
         }
         let lz = u.leading_zeros();
         (
-            Scale {
+            SoftFloat {
                 m: u << lz,
                 e: -(lz as i32) - frac as i32,
             },
@@ -247,7 +248,7 @@ impl Scale {
         )
     }
 
-    pub(crate) const fn mul(self, o: Scale) -> Option<Scale> {
+    pub(crate) const fn mul(self, o: SoftFloat) -> Option<SoftFloat> {
         if self.m == 0 || o.m == 0 {
             return Some(Self::ZERO);
         }
@@ -256,7 +257,7 @@ impl Scale {
     }
 
     /// `self / o`; `None` if `o` is zero.
-    pub(crate) const fn div(self, o: Scale) -> Option<Scale> {
+    pub(crate) const fn div(self, o: SoftFloat) -> Option<SoftFloat> {
         if o.m == 0 {
             return None;
         }
@@ -270,11 +271,11 @@ impl Scale {
         Self::from_u128(q2, self.e as i64 - o.e as i64 - 65)
     }
 
-    pub(crate) const fn recip(self) -> Option<Scale> {
+    pub(crate) const fn recip(self) -> Option<SoftFloat> {
         Self::ONE.div(self)
     }
 
-    pub(crate) const fn add(self, o: Scale) -> Option<Scale> {
+    pub(crate) const fn add(self, o: SoftFloat) -> Option<SoftFloat> {
         if self.m == 0 {
             return Some(o);
         }
@@ -294,7 +295,7 @@ impl Scale {
 
     /// `max(self − o, 0)`. Exact when the operands are within a factor of two (where
     /// cancellation happens).
-    pub(crate) const fn saturating_sub(self, o: Scale) -> Scale {
+    pub(crate) const fn saturating_sub(self, o: SoftFloat) -> SoftFloat {
         if o.m == 0 {
             return self;
         }
@@ -317,7 +318,7 @@ impl Scale {
         }
     }
 
-    pub(crate) const fn cmp(self, o: Scale) -> Ordering {
+    pub(crate) const fn cmp(self, o: SoftFloat) -> Ordering {
         if self.m == 0 || o.m == 0 {
             return if self.m == o.m {
                 Ordering::Equal
@@ -343,7 +344,7 @@ impl Scale {
         }
     }
 
-    pub(crate) const fn lt(self, o: Scale) -> bool {
+    pub(crate) const fn lt(self, o: SoftFloat) -> bool {
         matches!(self.cmp(o), Ordering::Less)
     }
 
@@ -437,27 +438,27 @@ const fn signed_i64(u: u128, negative: bool) -> Option<i64> {
     }
 }
 
-/// π as a `Scale` (from `fixed::consts::PI`, U2F126).
-pub(crate) const PI: Scale = match Scale::from_u128(fixed::consts::PI.to_bits(), -126) {
+/// π as a `SoftFloat` (from `fixed::consts::PI`, U2F126).
+pub(crate) const PI: SoftFloat = match SoftFloat::from_u128(fixed::consts::PI.to_bits(), -126) {
     Some(v) => v,
-    None => Scale::ZERO,
+    None => SoftFloat::ZERO,
 };
-/// π/4 as a `Scale` (from `fixed::consts::FRAC_PI_4`, U0F128).
-pub(crate) const FRAC_PI_4: Scale = match Scale::from_u128(fixed::consts::FRAC_PI_4.to_bits(), -128)
-{
-    Some(v) => v,
-    None => Scale::ZERO,
-};
-/// 2π as a `Scale` (from `fixed::consts::TAU`, U3F125).
-pub(crate) const TAU: Scale = match Scale::from_u128(fixed::consts::TAU.to_bits(), -125) {
-    Some(v) => v,
-    None => Scale::ZERO,
-};
-/// 1/(2π) as a `Scale` (from `fixed::consts::FRAC_1_TAU`, U0F128).
-pub(crate) const FRAC_1_TAU: Scale =
-    match Scale::from_u128(fixed::consts::FRAC_1_TAU.to_bits(), -128) {
+/// π/4 as a `SoftFloat` (from `fixed::consts::FRAC_PI_4`, U0F128).
+pub(crate) const FRAC_PI_4: SoftFloat =
+    match SoftFloat::from_u128(fixed::consts::FRAC_PI_4.to_bits(), -128) {
         Some(v) => v,
-        None => Scale::ZERO,
+        None => SoftFloat::ZERO,
+    };
+/// 2π as a `SoftFloat` (from `fixed::consts::TAU`, U3F125).
+pub(crate) const TAU: SoftFloat = match SoftFloat::from_u128(fixed::consts::TAU.to_bits(), -125) {
+    Some(v) => v,
+    None => SoftFloat::ZERO,
+};
+/// 1/(2π) as a `SoftFloat` (from `fixed::consts::FRAC_1_TAU`, U0F128).
+pub(crate) const FRAC_1_TAU: SoftFloat =
+    match SoftFloat::from_u128(fixed::consts::FRAC_1_TAU.to_bits(), -128) {
+        Some(v) => v,
+        None => SoftFloat::ZERO,
     };
 
 #[cfg(test)]
@@ -504,12 +505,12 @@ mod tests {
         }
     }
 
-    fn f(s: Scale) -> f64 {
+    fn to_f64(s: SoftFloat) -> f64 {
         s.m as f64 * 2f64.powi(s.e)
     }
 
-    fn sc(bits: i64) -> Scale {
-        Scale::from_bits(bits, 32).0
+    fn soft(bits: i64) -> SoftFloat {
+        SoftFloat::from_bits(bits, 32).0
     }
 
     #[test]
@@ -598,31 +599,31 @@ mod tests {
     }
 
     #[test]
-    fn scale_arithmetic_matches_f64() {
-        let a = sc(3 << 32); // 3
-        let b = sc(7 << 31); // 3.5
-        assert!((f(a.mul(b).unwrap()) - 10.5).abs() < 1e-15);
-        assert!((f(a.div(b).unwrap()) - 3.0 / 3.5).abs() < 1e-15);
-        assert!((f(a.add(b).unwrap()) - 6.5).abs() < 1e-15);
-        assert!((f(b.saturating_sub(a)) - 0.5).abs() < 1e-15);
-        assert_eq!(a.saturating_sub(b), Scale::ZERO);
-        assert!((f(PI) - core::f64::consts::PI).abs() < 1e-15);
-        assert!((f(FRAC_PI_4) - core::f64::consts::FRAC_PI_4).abs() < 1e-15);
-        assert!((f(TAU) - core::f64::consts::TAU).abs() < 1e-15);
+    fn soft_float_arithmetic_matches_f64() {
+        let a = soft(3 << 32); // 3
+        let b = soft(7 << 31); // 3.5
+        assert!((to_f64(a.mul(b).unwrap()) - 10.5).abs() < 1e-15);
+        assert!((to_f64(a.div(b).unwrap()) - 3.0 / 3.5).abs() < 1e-15);
+        assert!((to_f64(a.add(b).unwrap()) - 6.5).abs() < 1e-15);
+        assert!((to_f64(b.saturating_sub(a)) - 0.5).abs() < 1e-15);
+        assert_eq!(a.saturating_sub(b), SoftFloat::ZERO);
+        assert!((to_f64(PI) - core::f64::consts::PI).abs() < 1e-15);
+        assert!((to_f64(FRAC_PI_4) - core::f64::consts::FRAC_PI_4).abs() < 1e-15);
+        assert!((to_f64(TAU) - core::f64::consts::TAU).abs() < 1e-15);
         assert_eq!(a.to_i64(32, false), Some(3 << 32));
         assert_eq!(a.to_i64(32, true), Some(-(3 << 32)));
-        assert_eq!(sc(1).to_i64(0, false), Some(0));
-        assert_eq!(sc(1 << 31).to_i64(0, false), Some(1)); // ½ rounds up
-        assert_eq!(Scale::from_u64(1 << 40).to_i64(30, false), None);
+        assert_eq!(soft(1).to_i64(0, false), Some(0));
+        assert_eq!(soft(1 << 31).to_i64(0, false), Some(1)); // ½ rounds up
+        assert_eq!(SoftFloat::from_u64(1 << 40).to_i64(30, false), None);
         assert_eq!(a.recip().unwrap().mul_i64(3 << 32), Some(1 << 32));
         assert_eq!(a.mul_i64(-5), Some(-15));
-        assert_eq!(Scale::ONE.mul_i64(i64::MIN), Some(i64::MIN));
+        assert_eq!(SoftFloat::ONE.mul_i64(i64::MIN), Some(i64::MIN));
         assert_eq!(a.mul_i64(i64::MAX), None);
-        assert_eq!(Scale::ZERO.div(a), Some(Scale::ZERO));
-        assert_eq!(a.div(Scale::ZERO), None);
-        assert!(Scale::ZERO.lt(a) && !a.lt(a) && a.lt(b));
+        assert_eq!(SoftFloat::ZERO.div(a), Some(SoftFloat::ZERO));
+        assert_eq!(a.div(SoftFloat::ZERO), None);
+        assert!(SoftFloat::ZERO.lt(a) && !a.lt(a) && a.lt(b));
         // Rounding carry: all-ones rounds up to the next power of two.
-        let c = Scale::from_u128(u128::MAX, 0).unwrap();
-        assert!((f(c) - 2f64.powi(128)).abs() < 1.0);
+        let c = SoftFloat::from_u128(u128::MAX, 0).unwrap();
+        assert!((to_f64(c) - 2f64.powi(128)).abs() < 1.0);
     }
 }

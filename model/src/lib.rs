@@ -7,12 +7,16 @@
 //!
 //! * [`units`]: one newtype per quantity, each with its unit and fixed-point format;
 //! * [`design`]: the validated [`Design`] and its derived constants ([`Design::paper`]);
-//! * [`beam`]: k(L), k_T(L), their inverses L(k), deflection, force, stress, capacity, and
-//!   the precomputed per-setting [`Setting`] for the control loop;
+//! * [`stiffness`]: k(L), k_T(L) and their inverses L(k) (eq. 4, row 4T);
+//! * [`stress`]: deflection, beam force, root stress and the stress-limited capacity;
+//! * [`beam`]: the beam model and the precomputed per-setting [`Setting`] for the control
+//!   loop;
 //! * [`backlash`]: paper eqs. 5–7 and the free-play dead zone of the coupling;
 //! * [`hysteresis`]: friction hysteresis branches and their state machine (§2.1);
 //! * [`dynamics`]: natural frequency and the stiffness/clutch setting for a wanted one;
 //! * [`fixmath`]: integer square and cube roots;
+//! * [`sensors`]: the sensors' resolutions, their count-to-radian constants and the
+//!   encoder wrap;
 //! * [`control`]: the 1 kHz link-position controller, its trajectories and gain schedule;
 //! * [`supervisor`]: the latched fault checks (design.md §7); [`servo`]: the controller
 //!   under the supervisor with the enable state machine, the firmware's per-tick decision;
@@ -46,7 +50,10 @@ pub mod dynamics;
 pub mod error;
 pub mod fixmath;
 pub mod hysteresis;
+pub mod sensors;
 pub mod servo;
+pub mod stiffness;
+pub mod stress;
 pub mod supervisor;
 pub mod units;
 

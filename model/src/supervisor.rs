@@ -23,16 +23,16 @@
 //! Every threshold is converted to the per-tick formats when the supervisor is built
 //! ([`Supervisor::new`]), never per tick; the per-tick work is compares and one multiply.
 
-use crate::control::config::{ADC_COUNTS_PER_A, ADC_MID, ENCODER_COUNTS, POT_COUNTS};
-use crate::control::controller::POT_COUNT_Q32;
-use crate::control::{encoder_delta, Output, Schedule};
+use crate::control::{Output, Schedule};
+use crate::sensors::{
+    encoder_delta, ADC_COUNTS, ADC_COUNTS_PER_A, ADC_MID, ENCODER_COUNTS,
+    ENCODER_COUNT_Q32 as COUNT_Q32, POT_COUNTS, POT_COUNT_Q32,
+};
 use crate::units::{Angle, Torque};
 use fixed::types::I32F32;
 
 /// One radian as I32F32 bits.
 const Q32_ONE: i64 = 1 << 32;
-/// One encoder count, rad, as I32F32 bits: 2π/4096·2³².
-const COUNT_Q32: i64 = 6_588_397;
 
 /// What went wrong. The discriminant is the code logged and sent to the host.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -297,14 +297,14 @@ impl Supervisor {
         if trip <= 0 || trip >= 2 * Q32_ONE {
             return Err(SupervisorError::TripCurrent);
         }
-        if cfg.adc_min >= cfg.adc_max || cfg.adc_max > 4095 {
+        if cfg.adc_min >= cfg.adc_max || cfg.adc_max >= ADC_COUNTS {
             return Err(SupervisorError::AdcWindow);
         }
         let speed = cfg.max_link_speed.to_bits();
         if speed <= 0 || speed > 1000 * Q32_ONE {
             return Err(SupervisorError::JumpBound);
         }
-        if cfg.max_pot_jump == 0 || i32::from(cfg.max_pot_jump) >= POT_COUNTS {
+        if cfg.max_pot_jump == 0 || cfg.max_pot_jump >= POT_COUNTS {
             return Err(SupervisorError::JumpBound);
         }
         if cfg.stuck_ticks == 0 {
@@ -471,10 +471,14 @@ impl Supervisor {
         if r.current_adc < th.adc_min || r.current_adc > th.adc_max {
             note(self, FaultCode::AdcOutOfRange, i32::from(r.current_adc));
         } else {
-            let adc = i32::from(r.current_adc) - ADC_MID;
+            let adc = i32::from(r.current_adc) - i32::from(ADC_MID);
             if adc.abs() > th.trip_adc {
                 // mA = counts·1000/1024.
-                note(self, FaultCode::OverCurrent, adc * 1000 / 1024);
+                note(
+                    self,
+                    FaultCode::OverCurrent,
+                    adc * 1000 / i32::from(ADC_COUNTS_PER_A),
+                );
             }
         }
 

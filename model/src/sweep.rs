@@ -35,7 +35,7 @@ const LSB64: f64 = LSB * LSB;
 fn fx(v: f64) -> I32F32 {
     I32F32::from_bits((v * 4_294_967_296.0).round() as i64)
 }
-fn f(v: I32F32) -> f64 {
+fn to_f64(v: I32F32) -> f64 {
     v.to_num()
 }
 
@@ -67,17 +67,17 @@ fn domain_sweep_against_f64() {
     let mut ran = 0;
     for case in 0..3000 {
         let n = 1 + (rng.next() * 16.0) as u8;
-        let r = f(fx(rng.log_uniform(0.05, 5.0)));
-        let big_r = f(fx(rng.log_uniform(1.0, 100.0).max(r * 1.01)));
-        let e = f(fx(rng.log_uniform(1e3, 1e6)));
-        let g = f(fx(rng.log_uniform(e / 3.0, 1e6).clamp(e / 2.99, 1e6)));
+        let r = to_f64(fx(rng.log_uniform(0.05, 5.0)));
+        let big_r = to_f64(fx(rng.log_uniform(1.0, 100.0).max(r * 1.01)));
+        let e = to_f64(fx(rng.log_uniform(1e3, 1e6)));
+        let g = to_f64(fx(rng.log_uniform(e / 3.0, 1e6).clamp(e / 2.99, 1e6)));
         if g < e / 3.0 || g < 1e3 {
             continue;
         }
-        let sigma = f(fx(rng.log_uniform(1.0, 1e4)));
-        let l = f(fx(rng.log_uniform(0.1, 100.0)));
-        let tc = f(fx(rng.log_uniform(0.01, l * 0.999)));
-        let mu = f(fx(rng.uniform(0.0, 2.0)));
+        let sigma = to_f64(fx(rng.log_uniform(1.0, 1e4)));
+        let l = to_f64(fx(rng.log_uniform(0.1, 100.0)));
+        let tc = to_f64(fx(rng.log_uniform(0.01, l * 0.999)));
+        let mu = to_f64(fx(rng.uniform(0.0, 2.0)));
         let d = Design::new(DesignParams {
             beams: n,
             beam_radius: Length::from_fixed(fx(r)),
@@ -97,10 +97,10 @@ fn domain_sweep_against_f64() {
         let c = nf * 3.0 * e * i * big_r * big_r / 1000.0;
         let nu = e / (2.0 * g) - 1.0;
         let kappa = 6.0 * (1.0 + nu) / (7.0 + 6.0 * nu);
-        check("nu", Ok(f(d.poisson_ratio().get())), nu, LSB, max32);
+        check("nu", Ok(to_f64(d.poisson_ratio().get())), nu, LSB, max32);
         check(
             "kappa",
-            Ok(f(d.shear_coefficient().get())),
+            Ok(to_f64(d.shear_coefficient().get())),
             kappa,
             LSB,
             max32,
@@ -110,7 +110,7 @@ fn domain_sweep_against_f64() {
         let len = match case % 10 {
             0 => l,
             1 => tc,
-            _ => f(fx(rng.log_uniform(1e-6, l))),
+            _ => to_f64(fx(rng.log_uniform(1e-6, l))),
         };
         let lf = Length::from_fixed(fx(len));
         let k = c / len.powi(3);
@@ -123,7 +123,7 @@ fn domain_sweep_against_f64() {
         // Round trips L → k → L.
         for m in [BeamModel::EulerBernoulli, BeamModel::Timoshenko] {
             if let Ok(kk) = m.stiffness(&d, lf) {
-                let back = m.clutch_length(&d, kk).map(|v| f(v.get()));
+                let back = m.clutch_length(&d, kk).map(|v| to_f64(v.get()));
                 check("L(k(L))", back, len, LSB, max32);
             }
         }
@@ -134,22 +134,28 @@ fn domain_sweep_against_f64() {
         let kwf = Stiffness::from_fixed(I64F64::from_bits((kw * 2f64.powi(64)) as i128));
         let kwq = kwf.get().to_num::<f64>();
         match d.clutch_length(kwf) {
-            Ok(v) => check("L(k)", Ok(f(v.get())), (c / kwq).cbrt(), LSB, max32),
+            Ok(v) => check("L(k)", Ok(to_f64(v.get())), (c / kwq).cbrt(), LSB, max32),
             Err(Error::StiffnessTooLow) => assert!((c / kwq).cbrt() > l * 0.999_99),
             Err(err) => panic!("L(k): {err:?}"),
         }
 
-        let tau = f(fx(
+        let tau = to_f64(fx(
             rng.log_uniform(LSB, 1e9) * if rng.next() < 0.5 { -1.0 } else { 1.0 }
         ));
         let tf = Torque::from_fixed(fx(tau));
-        let th = |v: Result<Angle, Error>| v.map(|a| f(a.get()));
+        let th = |v: Result<Angle, Error>| v.map(|a| to_f64(a.get()));
         check("theta", th(d.deflection(tf, lf)), tau / k, LSB, max32);
         let p = tau * 1000.0 / (nf * big_r);
-        check("P", d.beam_force(tf).map(|v| f(v.get())), p, LSB, max32);
+        check(
+            "P",
+            d.beam_force(tf).map(|v| to_f64(v.get())),
+            p,
+            LSB,
+            max32,
+        );
         check(
             "sigma",
-            d.root_stress(tf, lf).map(|v| f(v.get())),
+            d.root_stress(tf, lf).map(|v| to_f64(v.get())),
             p * len * r / i,
             LSB,
             max32,
@@ -157,7 +163,7 @@ fn domain_sweep_against_f64() {
         let cap = nf * big_r * sigma * i / (r * len) / 1000.0;
         check(
             "tau_cap",
-            d.torque_capacity(lf).map(|v| f(v.get())),
+            d.torque_capacity(lf).map(|v| to_f64(v.get())),
             cap,
             LSB,
             max32,
@@ -180,34 +186,34 @@ fn domain_sweep_against_f64() {
         let theta_max = sigma * l / (3.0 * e * r);
         check(
             "delta_max",
-            Ok(f(d.max_tip_deflection().get())),
+            Ok(to_f64(d.max_tip_deflection().get())),
             theta_max * l,
             LSB,
             max32,
         );
         check(
             "theta_max",
-            Ok(f(d.bending_capacity().get())),
+            Ok(to_f64(d.bending_capacity().get())),
             theta_max,
             LSB,
             max32,
         );
         check(
             "c",
-            Ok(f(d.slot_clearance().get())),
+            Ok(to_f64(d.slot_clearance().get())),
             theta_max * tc,
             LSB,
             max32,
         );
         check(
             "r_slot",
-            Ok(f(d.slot_radius().get())),
+            Ok(to_f64(d.slot_radius().get())),
             r + theta_max * tc,
             LSB,
             max32,
         );
         let phi_b = theta_max * tc / big_r;
-        check("phi_b", Ok(f(d.free_play().get())), phi_b, LSB, max32);
+        check("phi_b", Ok(to_f64(d.free_play().get())), phi_b, LSB, max32);
         if len >= tc {
             check(
                 "theta_b",
@@ -233,16 +239,16 @@ fn domain_sweep_against_f64() {
             check("S.theta", th(s.deflection(tf)), tau / kk, LSB, max32);
             check(
                 "S.sigma",
-                s.root_stress(tf).map(|v| f(v.get())),
+                s.root_stress(tf).map(|v| to_f64(v.get())),
                 p * len * r / i,
                 LSB,
                 max32,
             );
-            let phi = f(fx(
+            let phi = to_f64(fx(
                 rng.log_uniform(1e-9, 10.0) * if rng.next() < 0.5 { -1.0 } else { 1.0 }
             ));
             let pf = Angle::from_fixed(fx(phi));
-            let tq = |v: Result<Torque, Error>| v.map(|t| f(t.get()));
+            let tq = |v: Result<Torque, Error>| v.map(|t| to_f64(t.get()));
             check("S.tau", tq(s.elastic_torque(pf)), kk * phi, LSB, max32);
             let pe = (phi.abs() - phi_b).max(0.0) * phi.signum();
             check("coupling", tq(s.coupling_torque(pf)), kk * pe, LSB, max32);
@@ -262,16 +268,16 @@ fn domain_sweep_against_f64() {
         }
 
         // Dynamics.
-        let j = f(fx(rng.log_uniform(1e-3, 1e9)));
+        let j = to_f64(fx(rng.log_uniform(1e-3, 1e9)));
         let jf = Inertia::from_fixed(fx(j));
         if let Ok(kk) = d.stiffness(lf) {
             let kq = kk.get().to_num::<f64>();
             if kq > 0.0 {
-                let w = natural_frequency(kk, jf).map(|v| f(v.get()));
+                let w = natural_frequency(kk, jf).map(|v| to_f64(v.get()));
                 check("omega", w, (kq * 1e6 / j).sqrt(), LSB, max32);
             }
         }
-        let w = f(fx(rng.log_uniform(1e-3, 1e7)));
+        let w = to_f64(fx(rng.log_uniform(1e-3, 1e7)));
         let kj = stiffness_for_frequency(jf, Frequency::from_fixed(fx(w)));
         check("k(J,w)", to64(kj), j * w * w / 1e6, LSB64, max64);
     }

@@ -16,7 +16,7 @@ use core::fmt;
 use fixed::types::{I32F32, I64F64};
 
 use crate::error::{Error, Result};
-use crate::fixmath::{Scale, FRAC_1_TAU, TAU};
+use crate::fixmath::{SoftFloat, FRAC_1_TAU, TAU};
 
 macro_rules! unit_i32f32 {
     ($(#[$doc:meta])* $name:ident, $unit:literal) => {
@@ -311,11 +311,11 @@ impl Stiffness {
         self.0.is_negative()
     }
 
-    /// The magnitude as a `Scale` (exact to 2⁻⁶³ relative).
-    pub(crate) const fn scale(self) -> Scale {
-        match Scale::from_u128(self.0.to_bits().unsigned_abs(), -64) {
+    /// The magnitude as a `SoftFloat` (exact to 2⁻⁶³ relative).
+    pub(crate) const fn magnitude(self) -> SoftFloat {
+        match SoftFloat::from_u128(self.0.to_bits().unsigned_abs(), -64) {
             Some(s) => s,
-            None => Scale::ZERO, // unreachable: the exponent is in [-64, 63]
+            None => SoftFloat::ZERO, // unreachable: the exponent is in [-64, 63]
         }
     }
 }

@@ -14,15 +14,15 @@
 //! link angle and beam stress.
 
 use model::control::{Command, Config, ControlError, Controller, Flags, Measurements, Schedule};
+use model::sensors::encoder_delta;
 use model::Design;
 
 use crate::config::{
     CouplingConfig, LinkConfig, LoadConfig, MotorConfig, PlantConfig, ProfileStep, TorqueProfile,
 };
+use crate::metrics::{Span, StepResponse};
+use crate::sensors::ENCODER_COUNT_RAD;
 use crate::sim::Plant;
-
-/// One encoder count, rad (2π/4096).
-pub const COUNT_RAD: f64 = core::f64::consts::TAU / 4096.0;
 
 const Q32: f64 = 4_294_967_296.0;
 const Q64: f64 = Q32 * Q32;
@@ -239,35 +239,34 @@ pub fn coupling_config(design: &Design, sched: &Schedule) -> Result<CouplingConf
 }
 
 /// Streams the step-response and tracking metrics of a run, one tick at a time (used by
-/// [`run`] and by the scenarios that run on the firmware).
+/// [`run`] and by the scenarios that run on the firmware). The step figures are
+/// [`crate::metrics`]' (clock from the command, band ±1 count of the true link angle).
 #[derive(Clone, Debug)]
 pub struct Recorder {
     settle_ticks: u32,
     total: u32,
-    window_from: u32,
     rms_from_ticks: u32,
     m: Metrics,
-    start_angle: f64,
-    target: f64,
-    last_outside: Option<u32>,
-    max_excess: f64,
+    step: StepResponse,
     sum_sq: f64,
     n_sq: u32,
-    duty_min: i32,
-    duty_max: i32,
-    cnt_min: i32,
-    cnt_max: i32,
+    duty_span: Span,
+    count_span: Span,
     unwrapped: i32,
     last_enc: u16,
-    t10: Option<f64>,
-    t90: Option<f64>,
+}
+
+/// Seconds from the command to the end of tick `tick` of a run that gives the command
+/// before tick `settle_ticks` (negative or 0 during the hold).
+fn since_command_s(tick: u32, settle_ticks: u32) -> f64 {
+    (i64::from(tick) - i64::from(settle_ticks) + 1) as f64 * 1e-3
 }
 
 impl Recorder {
     /// A recorder for a run of `settle_ticks` hold + `run_ticks`, the steadiness metrics
-    /// over the last `steady_window_ticks`, the RMS error from `rms_from_ticks` after the
-    /// command; `sigma_allow_pa` for the stress ratio; `first_encoder` the link encoder
-    /// before the first tick.
+    /// over the last `steady_window_ticks` (at most the run), the RMS error from
+    /// `rms_from_ticks` after the command; `sigma_allow_pa` for the stress ratio;
+    /// `first_encoder` the link encoder before the first tick.
     #[must_use]
     pub fn new(
         settle_ticks: u32,
@@ -278,30 +277,28 @@ impl Recorder {
         first_encoder: u16,
     ) -> Recorder {
         let total = settle_ticks.saturating_add(run_ticks);
+        let window_from = total.saturating_sub(steady_window_ticks.min(run_ticks));
         Recorder {
             settle_ticks,
             total,
-            window_from: total.saturating_sub(steady_window_ticks),
             rms_from_ticks,
             m: Metrics {
                 allowable_stress_pa: sigma_allow_pa,
                 output_hash: FNV_OFFSET,
                 ..Metrics::default()
             },
-            start_angle: 0.0,
-            target: 0.0,
-            last_outside: None,
-            max_excess: 0.0,
+            step: StepResponse::new(
+                0.0,
+                0.0,
+                ENCODER_COUNT_RAD,
+                since_command_s(window_from, settle_ticks),
+            ),
             sum_sq: 0.0,
             n_sq: 0,
-            duty_min: i32::MAX,
-            duty_max: i32::MIN,
-            cnt_min: i32::MAX,
-            cnt_max: i32::MIN,
+            duty_span: Span::new(),
+            count_span: Span::new(),
             unwrapped: 0,
             last_enc: first_encoder,
-            t10: None,
-            t90: None,
         }
     }
 
@@ -314,8 +311,12 @@ impl Recorder {
     /// The command was given at tick `settle_ticks`: the true link angle then and the
     /// command's final target, rad.
     pub fn on_command(&mut self, start_angle: f64, target: f64) {
-        self.start_angle = start_angle;
-        self.target = target;
+        self.step = StepResponse::new(
+            start_angle,
+            target,
+            ENCODER_COUNT_RAD,
+            self.step.steady_from_s(),
+        );
     }
 
     /// Records tick `tick` (0-based from the start of the hold): the controller's output
@@ -330,38 +331,22 @@ impl Recorder {
     ) -> Sample {
         let m = &mut self.m;
         m.output_hash = fnv1a64(m.output_hash, &duty.to_le_bytes());
-        let after = tick >= self.settle_ticks;
         let since = i64::from(tick) - i64::from(self.settle_ticks);
-        let t_s = (since + 1) as f64 * 1e-3;
+        let t_s = since_command_s(tick, self.settle_ticks);
         let reference = fx32(out.reference.to_bits());
-        let target = self.target;
 
         m.peak_stress_pa = m.peak_stress_pa.max(f64::from(st.beam_stress_pa).abs());
         m.peak_spring_torque_nm = m
             .peak_spring_torque_nm
             .max(f64::from(st.spring_torque_nm).abs());
-        let d = model::control::encoder_delta(readings.link_encoder, self.last_enc);
+        let d = encoder_delta(readings.link_encoder, self.last_enc);
         self.last_enc = readings.link_encoder;
         self.unwrapped = self.unwrapped.saturating_add(d);
-        if after {
+        self.step.record(t_s, st.link_angle_rad);
+        if since >= 0 {
             m.torque_limited |= out.flags.torque_limited;
             m.current_limited |= out.flags.current_limited;
             m.duty_saturated |= out.flags.duty_saturated;
-            let err_t = st.link_angle_rad - target;
-            if err_t.abs() > COUNT_RAD {
-                self.last_outside = Some(tick);
-            }
-            let h = target - self.start_angle;
-            if h != 0.0 {
-                let frac = (st.link_angle_rad - self.start_angle) / h;
-                if self.t10.is_none() && frac >= 0.1 {
-                    self.t10 = Some(t_s);
-                }
-                if self.t90.is_none() && frac >= 0.9 {
-                    self.t90 = Some(t_s);
-                }
-                self.max_excess = self.max_excess.max(err_t * h.signum());
-            }
             if since >= i64::from(self.rms_from_ticks) {
                 let e = reference - st.link_angle_rad;
                 self.sum_sq += e * e;
@@ -369,13 +354,9 @@ impl Recorder {
                 m.max_error_rad = m.max_error_rad.max(e.abs());
             }
         }
-        if tick >= self.window_from {
-            self.duty_min = self.duty_min.min(i32::from(duty));
-            self.duty_max = self.duty_max.max(i32::from(duty));
-            self.cnt_min = self.cnt_min.min(self.unwrapped);
-            self.cnt_max = self.cnt_max.max(self.unwrapped);
-            let e = (st.link_angle_rad - target).abs() / COUNT_RAD;
-            m.steady_state_error_counts = m.steady_state_error_counts.max(e);
+        if self.step.in_steady_window(t_s) {
+            self.duty_span.add(i32::from(duty));
+            self.count_span.add(self.unwrapped);
         }
         Sample {
             tick,
@@ -397,33 +378,21 @@ impl Recorder {
     #[must_use]
     pub fn finish(&self) -> Metrics {
         let mut m = self.m;
-        let total = self.total;
-        let h = self.target - self.start_angle;
-        m.target_rad = self.target;
-        // A change below one count (a hold, a sine about the start) has no overshoot figure.
-        m.overshoot_pct = if h.abs() >= COUNT_RAD {
-            100.0 * self.max_excess / h.abs()
-        } else {
-            0.0
-        };
-        m.rise_time_s = match (self.t10, self.t90) {
-            (Some(a), Some(b)) => Some(b - a),
-            _ => None,
-        };
-        m.settling_time_s = match self.last_outside {
-            None => Some(0.0),
-            Some(t) if t + 1 >= total => None,
-            Some(t) => Some((i64::from(t) - i64::from(self.settle_ticks) + 1) as f64 * 1e-3),
-        };
+        let step = self.step.figures();
+        m.target_rad = self.step.target();
+        m.overshoot_pct = step.overshoot_pct;
+        m.rise_time_s = step.rise_time_s;
+        m.settling_time_s = step.settling_time_s;
+        m.steady_state_error_counts = step.steady_state_error / ENCODER_COUNT_RAD;
         m.peak_stress_ratio = m.peak_stress_pa / m.allowable_stress_pa;
         m.rms_error_rad = if self.n_sq > 0 {
             libm::sqrt(self.sum_sq / f64::from(self.n_sq))
         } else {
             0.0
         };
-        m.steady_duty_span = self.duty_max.saturating_sub(self.duty_min).max(0);
-        m.steady_count_span = self.cnt_max.saturating_sub(self.cnt_min).max(0);
-        m.ticks = total;
+        m.steady_duty_span = self.duty_span.width();
+        m.steady_count_span = self.count_span.width();
+        m.ticks = self.total;
         m
     }
 }

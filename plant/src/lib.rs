@@ -38,7 +38,7 @@
 //! The coupling parameters are plain `f32` that the caller derives from the beam model
 //! (`model` crate, `design.md` §2) for its geometry and clutch length; [`harness`] does
 //! that and closes the loop with the `model` crate's controller (metrics streamed, no
-//! allocation).
+//! allocation); [`metrics`] defines the step-response figures every tool reports.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
@@ -46,6 +46,7 @@
 mod config;
 mod coupling;
 pub mod harness;
+pub mod metrics;
 pub mod scenario;
 mod sensors;
 pub mod served;
@@ -58,7 +59,6 @@ pub use config::{
 };
 pub use coupling::{Branch, Coupling};
 pub use sensors::{
-    SensorFault, SensorFaults, SensorReadings, XorShift32, ADC_COUNTS, ADC_COUNTS_PER_A, ADC_MID,
-    ENCODER_COUNTS, POT_COUNTS, POT_COUNTS_PER_RAD,
+    SensorFault, SensorFaults, SensorReadings, XorShift32, ENCODER_COUNT_RAD, POT_COUNTS_PER_RAD,
 };
 pub use sim::{BridgeCommand, Energy, Plant, TrueState};

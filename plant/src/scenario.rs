@@ -676,8 +676,8 @@ impl ScenarioRun {
                     Injection::EncoderFrozen => {
                         self.plant.faults_mut().link_encoder = SensorFault::Frozen;
                         let raw = self.readings.link_encoder;
-                        let v = model::control::encoder_delta(raw, 0);
-                        self.frozen_angle = Some((f64::from(v) + 0.5) * harness::COUNT_RAD);
+                        let v = model::sensors::encoder_delta(raw, 0);
+                        self.frozen_angle = Some((f64::from(v) + 0.5) * crate::ENCODER_COUNT_RAD);
                     }
                     Injection::AdcStuckAt(v) => {
                         self.plant.faults_mut().current_adc = SensorFault::StuckAt(v);

@@ -1,17 +1,17 @@
 //! Sensors as the board sees them: quantisation, clamping, wrap, noise and fault hooks.
+//! Their resolutions are `model::sensors`'.
 
-/// Potentiometer full scale: 1024 counts (0..=1023) over 300°.
-pub const POT_COUNTS: u16 = 1024;
-/// Potentiometer counts per radian of gear angle: 1024 / (300° in rad) = 195.57.
-pub const POT_COUNTS_PER_RAD: f32 = 1024.0 / (300.0 * (core::f32::consts::PI / 180.0));
-/// Magnetic encoder counts per revolution (12 bit).
-pub const ENCODER_COUNTS: u16 = 4096;
-/// Current ADC full scale: 12 bit (0..=4095).
-pub const ADC_COUNTS: u16 = 4096;
-/// Current ADC reading at zero current (mid-scale).
-pub const ADC_MID: u16 = 2048;
-/// Current ADC counts per ampere: ±2 A over 4096 counts = 1024 counts/A.
-pub const ADC_COUNTS_PER_A: f32 = 1024.0;
+use model::sensors::{
+    ADC_COUNTS, ADC_COUNTS_PER_A, ADC_MID, ENCODER_COUNTS, POT_COUNTS, POT_SPAN_DEG,
+};
+
+/// One link-encoder count, rad (2π/4096; f64 for the host-side figures).
+pub const ENCODER_COUNT_RAD: f64 = core::f64::consts::TAU / ENCODER_COUNTS as f64;
+
+/// Potentiometer counts per radian of gear angle: 1024 / (300° in rad) = 195.57 (f32, the
+/// plant's quantiser).
+pub const POT_COUNTS_PER_RAD: f32 =
+    POT_COUNTS as f32 / (POT_SPAN_DEG as f32 * (core::f32::consts::PI / 180.0));
 
 /// Deterministic xorshift32 generator (Marsaglia), the noise source of the sensors.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -123,7 +123,7 @@ pub(crate) fn adc_counts(current_a: f32, offset: f32, noise: f32) -> u16 {
     // `clamp` cannot panic).
     let i = current_a.clamp(-4.0, 4.0);
     round_clamp(
-        f32::from(ADC_MID) + i * ADC_COUNTS_PER_A + offset + noise,
+        f32::from(ADC_MID) + i * f32::from(ADC_COUNTS_PER_A) + offset + noise,
         ADC_COUNTS - 1,
     )
 }

@@ -23,7 +23,8 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
-use model::control::{ClutchSetting, Command, Config, PidGains, POT_COUNT_Q32};
+use model::control::{ClutchSetting, Command, Config, PidGains};
+use model::sensors::POT_COUNT_Q32;
 use model::servo::{BridgeDemand, Prepared, Servo, ServoError, ServoState, TickInput, TickOutput};
 use model::supervisor::{FaultCode as ModelFaultCode, SupervisorConfig};
 use model::{Angle, Design, Frequency, Length, Ratio, Stiffness, Torque};

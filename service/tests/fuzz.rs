@@ -14,6 +14,18 @@ use service::{Actuator, Service};
 mod common;
 use common::Cell;
 
+/// Limits from (margin ‰, current mA, motor torque µN·m, duty ‰, position min, max µrad).
+fn limits_from((m, c, t, d, lo, hi): (u16, u16, u32, u16, i32, i32)) -> Limits {
+    Limits {
+        torque_margin_permille: m,
+        current_ma: c,
+        motor_torque_unm: t,
+        duty_permille: d,
+        position_min_urad: lo,
+        position_max_urad: hi,
+    }
+}
+
 /// Any request, fields over their whole types (most are out of range), and in range.
 fn request() -> impl Strategy<Value = Request> {
     let limits = (
@@ -24,14 +36,7 @@ fn request() -> impl Strategy<Value = Request> {
         any::<i32>(),
         any::<i32>(),
     )
-        .prop_map(|(m, c, t, d, lo, hi)| Limits {
-            torque_margin_permille: m,
-            current_ma: c,
-            motor_torque_unm: t,
-            duty_permille: d,
-            position_min_urad: lo,
-            position_max_urad: hi,
-        });
+        .prop_map(limits_from);
     let near_limits = (
         1u16..=1000,
         1u16..=2500,
@@ -40,14 +45,7 @@ fn request() -> impl Strategy<Value = Request> {
         -3_000_000i32..0,
         0i32..3_000_000,
     )
-        .prop_map(|(m, c, t, d, lo, hi)| Limits {
-            torque_margin_permille: m,
-            current_ma: c,
-            motor_torque_unm: t,
-            duty_permille: d,
-            position_min_urad: lo,
-            position_max_urad: hi,
-        });
+        .prop_map(limits_from);
     prop_oneof![
         Just(Request::Ping),
         Just(Request::GetStatus),

@@ -6,8 +6,10 @@ use model::control::Config;
 use model::servo::{Servo, TickInput};
 use model::supervisor::SupervisorConfig;
 use model::{Design, Length};
+use plant::metrics::StepResponse;
 use plant::scenario::BridgeLines;
 use plant::served::ServedActuator;
+use plant::ENCODER_COUNT_RAD;
 use protocol::{Frame, Handler, Reply, Request, State, TelemetrySample};
 use service::{Actuator, Service};
 
@@ -73,10 +75,12 @@ fn a_commanded_move_with_the_load_meets_the_controller_tolerances() {
     let mut b = Bench::new(0.3);
     b.run(50);
     assert_eq!(b.ask(Request::Enable), Reply::Ok);
+    // Telemetry from the start of the hold: the samples before the move give its start.
+    assert_eq!(b.ask(Request::StreamTelemetry { rate_hz: 500 }), Reply::Ok);
     // The load is hung on at the first driven tick; let the hold take it.
     b.run(1000);
-    assert_eq!(b.ask(Request::StreamTelemetry { rate_hz: 500 }), Reply::Ok);
-    let start = b.samples.len();
+    let command_tick = b.actuator.0.servo.ticks();
+    let target = 500_000.0;
     assert_eq!(
         b.ask(Request::Move {
             target_urad: 500_000,
@@ -85,28 +89,32 @@ fn a_commanded_move_with_the_load_meets_the_controller_tolerances() {
         Reply::Ok
     );
     b.run(1500);
-    let rec = &b.samples[start..];
-    let count_urad = std::f64::consts::TAU / 4096.0 * 1e6;
-    let target = 500_000.0;
-    let first = f64::from(rec[0].link_angle_urad);
-    let peak = rec
+    // The figures of `plant::metrics`, clock from the command. The measured angle is the
+    // centre of its count: ±1 count of the true angle is ≤ 1.5 counts of it. Steady from
+    // 400 ms: settled by then and stays.
+    let count_urad = ENCODER_COUNT_RAD * 1e6;
+    let start = b
+        .samples
         .iter()
+        .rev()
+        .find(|s| s.tick <= command_tick)
         .map(|s| f64::from(s.link_angle_urad))
-        .fold(f64::MIN, f64::max);
-    let overshoot = (peak - target) / (target - first) * 100.0;
-    assert!(overshoot <= 5.0, "overshoot {overshoot:.2} %");
-    // Settled within ±1 count of the target by 400 ms after the move started, and stays.
-    let t0 = rec[0].tick;
-    let late = rec.iter().filter(|s| s.tick >= t0 + 400);
-    let worst = late
-        .map(|s| (f64::from(s.link_angle_urad) - target).abs())
-        .fold(0.0, f64::max);
+        .expect("samples before the move");
+    let mut step = StepResponse::new(start, target, 1.5 * count_urad, 0.4);
+    for s in b.samples.iter().filter(|s| s.tick > command_tick) {
+        let t_s = f64::from(s.tick - command_tick) * 1e-3;
+        step.record(t_s, f64::from(s.link_angle_urad));
+    }
+    let f = step.figures();
     eprintln!(
-        "overshoot {overshoot:.2} %, largest error from 400 ms on {:.2} counts",
-        worst / count_urad
+        "overshoot {:.2} %, settling {:?} s, largest error from 400 ms on {:.2} counts",
+        f.overshoot_pct,
+        f.settling_time_s,
+        f.steady_state_error / count_urad
     );
-    // The measured angle is the centre of its count: ±1 count is ≤ 1.5 counts from it.
-    assert!(worst <= 1.5 * count_urad, "error {worst:.0} µrad");
+    assert!(f.overshoot_pct <= 5.0, "{f:?}");
+    assert!(f.settling_time_s.is_some_and(|t| t <= 0.4), "{f:?}");
+    assert!(f.steady_state_error <= 1.5 * count_urad, "{f:?}");
     match b.ask(Request::GetStatus) {
         Reply::Status(s) => {
             assert_eq!(s.state, State::Enabled);

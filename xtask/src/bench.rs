@@ -1,16 +1,16 @@
-//! `cargo xtask bench`: instruction counts, fixed point vs f32, footprint and stack
-//! (issue 7).
+//! `cargo xtask bench`: instruction counts, fixed point vs f32, footprint and stack.
 //!
-//! For each emulated board it builds the `vsa-bench` crate's binaries in release and
+//! For each emulated board it builds the `vsa-firmware` crate's programs in release and
 //! - runs `vsa-bench` under QEMU at `-icount shift=`[`BENCH_SHIFT`]: one instruction takes
 //!   2^shift ns of virtual time and SysTick counts the core clock, so
 //!   `2^shift·f_sysclk/10⁹` SysTick counts are one instruction (QEMU has no cycle counter);
-//!   the firmware logs the counts of each benchmark (`bench/src/main.rs` says what each
-//!   one times and over which inputs), this converts them;
+//!   the program writes the counts of each benchmark as `RESULT bench` records
+//!   (`firmware/src/bin/vsa-bench.rs` says what each one times and over which inputs), this
+//!   converts them;
 //! - reads the footprint of `vsa-control-only` (the control loop and host link without the simulated
 //!   actuator) from its ELF;
 //! - runs the real firmware's step sweep and reads its stack high-water mark (the firmware
-//!   paints its stack at boot and logs `stack: high-water …` when the scenario ends) and
+//!   paints its stack at boot and writes `RESULT stack …` when the scenario ends) and
 //!   its own in-situ control-step count;
 //!
 //! and reads the footprint of the firmware with the simulated actuator and of the
@@ -24,8 +24,9 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use crate::board::Board;
-use crate::cmd::{cargo, run_status, target_dir};
-use crate::{firmware, qemu, scenarios, setup, test};
+use crate::checks::{self, Expected};
+use crate::cmd::target_dir;
+use crate::{firmware, qemu, results, scenarios, setup, test};
 use plant::scenario::ScenarioId;
 
 /// icount shift of the benchmark runs: 128 ns per instruction, so 21.5 (M4, 168 MHz) and
@@ -134,41 +135,10 @@ pub fn footprint(elf: &Path) -> Result<Footprint> {
     Ok(f)
 }
 
-/// Builds `bin` of `vsa-bench` for `board` in release; returns a copy of the ELF at
-/// `target/bench/<board>-<bin>.elf`.
+/// Builds program `bin` for `board` in release; returns a copy of the ELF at
+/// `target/firmware/<board>-<bin>.elf`.
 pub fn build(board: Board, bin: &str) -> Result<PathBuf> {
-    let mut cmd = cargo();
-    cmd.args(["build", "--release", "--package", "vsa-bench", "--bin", bin])
-        .args(board.cargo_args());
-    run_status(&mut cmd).with_context(|| format!("building {bin} for {}", board.feature()))?;
-    let built = target_dir().join(board.target()).join("release").join(bin);
-    let dir = target_dir().join("bench");
-    std::fs::create_dir_all(&dir)?;
-    let elf = dir.join(format!("{}-{bin}.elf", board.feature()));
-    std::fs::copy(&built, &elf)
-        .with_context(|| format!("copying {} to {}", built.display(), elf.display()))?;
-    Ok(elf)
-}
-
-fn after<'a>(line: &'a str, key: &str) -> Option<&'a str> {
-    let rest = &line[line.find(key)? + key.len()..];
-    let end = rest
-        .find(|c: char| !c.is_ascii_digit())
-        .unwrap_or(rest.len());
-    Some(&rest[..end])
-}
-
-/// `bench NAME: n N, sum S, min A, max B counts` → (NAME, N, S, B).
-pub fn parse_bench_line(line: &str) -> Option<(String, u64, u64, u64)> {
-    let rest = &line[line.find("bench ")? + 6..];
-    let (name, rest) = rest.split_once(": n ")?;
-    if name.contains(' ') {
-        return None;
-    }
-    let n = after(rest, "")?.parse().ok()?;
-    let sum = after(rest, "sum ")?.parse().ok()?;
-    let max = after(rest, "max ")?.parse().ok()?;
-    Some((name.to_owned(), n, sum, max))
+    firmware::build_program(board, bin, format!("{}-{bin}.elf", board.feature()))
 }
 
 /// What one `vsa-bench` run reported.
@@ -182,48 +152,42 @@ pub struct BenchRun {
     pub agreement: Option<String>,
 }
 
-/// Parses a `vsa-bench` log run at icount `shift`.
+/// The records every `vsa-bench` run must write (one `bench` per benchmark).
+const BENCH_RECORDS: [&str; 3] = ["clock", "bench", "f32_agreement"];
+
+/// Reads a `vsa-bench` run at icount `shift` from its `RESULT` records.
 pub fn parse_run(lines: &[String], shift: u32) -> Result<BenchRun> {
-    let mut run = BenchRun::default();
-    for line in lines {
-        if let Some(hz) = line
-            .find("bench board ")
-            .and_then(|_| after(line, "sysclk "))
-        {
-            run.sysclk_hz = hz.parse().context("sysclk")?;
-        }
-        if line.contains("bench f32 port vs fixed point") {
-            let start = line.find("bench f32").unwrap_or(0);
-            let text = &line[start + 6..];
-            let text = text.split("  (").next().unwrap_or(text);
-            run.agreement = Some(text.to_owned());
-        }
-    }
-    if run.sysclk_hz == 0 {
-        bail!("no `bench board …: sysclk … Hz` line");
-    }
+    let mut run = BenchRun {
+        sysclk_hz: results::last(lines, "clock")?.get("sysclk_hz")?,
+        ..BenchRun::default()
+    };
+    let a = results::last(lines, "f32_agreement")?;
+    run.agreement = Some(format!(
+        "f32 port vs fixed point, each in its own closed loop: {} ticks, |duty difference| mean {} max {} permille, link angle difference max {} urad, {} faults",
+        a.text("ticks")?,
+        a.text("duty_diff_mean_permille")?,
+        a.text("duty_diff_max_permille")?,
+        a.text("link_angle_diff_max_urad")?,
+        a.text("faults")?
+    ));
     // SysTick counts per instruction: 2^shift ns per instruction at f_sysclk.
     let per_insn = (run.sysclk_hz as f64) * f64::from(1u32 << shift) / 1e9;
-    for line in lines {
-        if let Some((name, n, sum, max)) = parse_bench_line(line) {
-            let mean = if n == 0 { 0.0 } else { sum as f64 / n as f64 };
-            run.results.insert(
-                name,
-                Insns {
-                    n,
-                    mean: mean / per_insn,
-                    max: max as f64 / per_insn,
-                },
-            );
-        }
+    for r in results::all(lines, "bench") {
+        let (n, sum, max): (u64, u64, u64) = (r.get("n")?, r.get("sum")?, r.get("max")?);
+        let mean = if n == 0 { 0.0 } else { sum as f64 / n as f64 };
+        run.results.insert(
+            r.text("name")?.to_owned(),
+            Insns {
+                n,
+                mean: mean / per_insn,
+                max: max as f64 / per_insn,
+            },
+        );
     }
     for (name, _) in BENCHES.iter() {
         if !run.results.contains_key(*name) {
-            bail!("no `bench {name}: …` line in the log");
+            bail!("no `RESULT bench name={name} …` line in the log");
         }
-    }
-    if !lines.iter().any(|l| l.contains("bench done")) {
-        bail!("no `bench done` line");
     }
     Ok(run)
 }
@@ -243,26 +207,19 @@ pub fn run_bench(board: Board, echo: bool) -> Result<BenchRun> {
             }
         },
     )?;
-    if outcome.exit_code != 0 || outcome.malformed_frames != 0 {
-        bail!(
-            "vsa-bench on {} exited with {} ({} malformed defmt frames)",
-            board.feature(),
-            outcome.exit_code,
-            outcome.malformed_frames
-        );
-    }
+    checks::check(&outcome, &Expected::Records(&BENCH_RECORDS))
+        .with_context(|| format!("vsa-bench on {}", board.feature()))?;
     parse_run(&outcome.lines, BENCH_SHIFT)
 }
 
-/// `stack: high-water N bytes of M bytes (boot B, running R)` → (N, M, B, R).
-pub fn parse_stack(lines: &[String]) -> Option<(u64, u64, u64, u64)> {
-    let line = lines.iter().find(|l| l.contains("stack: high-water "))?;
-    let n = |key: &str| after(line, key)?.parse().ok();
-    Some((
-        n("stack: high-water ")?,
-        n(" bytes of ")?,
-        n("(boot ")?,
-        n(", running ")?,
+/// The `RESULT stack` record → (peak, size, boot, running), bytes.
+pub fn parse_stack(lines: &[String]) -> Result<(u64, u64, u64, u64)> {
+    let r = results::last(lines, "stack")?;
+    Ok((
+        r.get("peak")?,
+        r.get("size")?,
+        r.get("boot")?,
+        r.get("running")?,
     ))
 }
 
@@ -283,14 +240,13 @@ fn run_firmware(board: Board) -> Result<FirmwareRun> {
         test::wall_limit(15),
         |_| {},
     )?;
-    scenarios::check(id, &outcome)
+    let host = scenarios::host_summary(id)?;
+    checks::check(&outcome, &Expected::Scenario { id, host: &host })
         .with_context(|| format!("the step sweep on {}", board.feature()))?;
     Ok(FirmwareRun {
         footprint: footprint(&elf)?,
-        stack: parse_stack(&outcome.lines)
-            .with_context(|| format!("no `stack: high-water` line from {}", board.feature()))?,
-        step: scenarios::parse_step_insns(&outcome.lines)
-            .context("no `control step:` line from the firmware")?,
+        stack: parse_stack(&outcome.lines)?,
+        step: scenarios::step_insns(&outcome.lines)?,
     })
 }
 
@@ -305,20 +261,11 @@ struct ControlRun {
 fn run_control_only(board: Board) -> Result<ControlRun> {
     let elf = build(board, "vsa-control-only")?;
     let outcome = qemu::run(board, &elf, &[], test::wall_limit(2), |_| {})?;
-    anyhow::ensure!(
-        outcome.exit_code == 0,
-        "vsa-control-only on {} exited with {} (an overrun?)",
-        board.feature(),
-        outcome.exit_code
-    );
+    checks::check(&outcome, &Expected::Records(&["stack"]))
+        .with_context(|| format!("vsa-control-only on {} (an overrun?)", board.feature()))?;
     Ok(ControlRun {
         footprint: footprint(&elf)?,
-        stack: parse_stack(&outcome.lines).with_context(|| {
-            format!(
-                "no `stack: high-water` line from vsa-control-only on {}",
-                board.feature()
-            )
-        })?,
+        stack: parse_stack(&outcome.lines)?,
     })
 }
 
@@ -360,40 +307,32 @@ pub fn run() -> Result<()> {
         let get = |k: &str| benches[i].results.get(k).map(|r| r.max.round() as u64);
         b.insert("stiffness_insns".into(), json!(get("stiffness")));
         b.insert("inverse_insns".into(), json!(get("inverse")));
-        // The control firmware (no plant): the figures the issue's targets are about.
-        let c = &controls[i];
-        b.insert("flash_bytes".into(), json!(c.footprint.flash()));
-        b.insert("static_ram_bytes".into(), json!(c.footprint.static_ram()));
-        b.insert("stack_bytes".into(), json!(c.stack.0));
-        b.insert("stack_size_bytes".into(), json!(c.stack.1));
-        b.insert("stack_boot_bytes".into(), json!(c.stack.2));
-        b.insert("stack_running_bytes".into(), json!(c.stack.3));
-        // The emulated firmware with the simulated actuator, after its step sweep.
-        b.insert("firmware_stack_bytes".into(), json!(firmwares[i].stack.0));
-        b.insert(
-            "firmware_stack_boot_bytes".into(),
-            json!(firmwares[i].stack.2),
-        );
-        b.insert(
-            "firmware_stack_running_bytes".into(),
-            json!(firmwares[i].stack.3),
-        );
-        b.insert(
-            "firmware_flash_bytes".into(),
-            json!(firmwares[i].footprint.flash()),
-        );
-        b.insert(
-            "firmware_static_ram_bytes".into(),
-            json!(firmwares[i].footprint.static_ram()),
-        );
-        b.insert(
-            "firmware_step_sweep_control_step_insns_mean".into(),
-            json!(firmwares[i].step.0),
-        );
-        b.insert(
-            "firmware_step_sweep_control_step_insns_max".into(),
-            json!(firmwares[i].step.1),
-        );
+        // The control firmware (no plant): the figures the performance targets are about;
+        // then the emulated firmware with the simulated actuator, after its step sweep.
+        let (c, f) = (&controls[i], &firmwares[i]);
+        for (key, value) in [
+            ("flash_bytes", json!(c.footprint.flash())),
+            ("static_ram_bytes", json!(c.footprint.static_ram())),
+            ("stack_bytes", json!(c.stack.0)),
+            ("stack_size_bytes", json!(c.stack.1)),
+            ("stack_boot_bytes", json!(c.stack.2)),
+            ("stack_running_bytes", json!(c.stack.3)),
+            ("firmware_stack_bytes", json!(f.stack.0)),
+            ("firmware_stack_boot_bytes", json!(f.stack.2)),
+            ("firmware_stack_running_bytes", json!(f.stack.3)),
+            ("firmware_flash_bytes", json!(f.footprint.flash())),
+            ("firmware_static_ram_bytes", json!(f.footprint.static_ram())),
+            (
+                "firmware_step_sweep_control_step_insns_mean",
+                json!(f.step.0),
+            ),
+            (
+                "firmware_step_sweep_control_step_insns_max",
+                json!(f.step.1),
+            ),
+        ] {
+            b.insert(key.into(), value);
+        }
         report.insert(board.feature().into(), Value::Object(b));
     }
     report.insert(
@@ -467,29 +406,33 @@ fn markdown(
     }
 
     s.push_str("\n| image | board | flash (text + rodata + data) | static RAM (data + bss + uninit) | stack high-water |\n|---|---|---:|---:|---:|\n");
-    for (i, b) in boards.iter().enumerate() {
-        s.push_str(&format!(
-            "| control firmware without the plant: control loop + host link (`vsa-control-only`, 2 s holding) | {} | {} | {} | {} of {} (boot {}, running {}) |\n",
-            b.feature(),
-            fmt_bytes(controls[i].footprint.flash()),
-            fmt_bytes(controls[i].footprint.static_ram()),
-            controls[i].stack.0,
-            controls[i].stack.1,
-            controls[i].stack.2,
-            controls[i].stack.3
+    // One row: image, board, footprint and stack high-water (peak, size, boot, running).
+    let row = |image: &str, board: Board, f: &Footprint, st: &(u64, u64, u64, u64)| {
+        format!(
+            "| {image} | {} | {} | {} | {} of {} (boot {}, running {}) |\n",
+            board.feature(),
+            fmt_bytes(f.flash()),
+            fmt_bytes(f.static_ram()),
+            st.0,
+            st.1,
+            st.2,
+            st.3
+        )
+    };
+    for (b, c) in boards.iter().zip(controls) {
+        s.push_str(&row(
+            "control firmware without the plant: control loop + host link (`vsa-control-only`, 2 s holding)",
+            *b,
+            &c.footprint,
+            &c.stack,
         ));
     }
-    for (i, b) in boards.iter().enumerate() {
-        let f = &firmwares[i];
-        s.push_str(&format!(
-            "| firmware with the simulated actuator (`vsa-firmware`, step sweep) | {} | {} | {} | {} of {} (boot {}, running {}) |\n",
-            b.feature(),
-            fmt_bytes(f.footprint.flash()),
-            fmt_bytes(f.footprint.static_ram()),
-            f.stack.0,
-            f.stack.1,
-            f.stack.2,
-            f.stack.3
+    for (b, f) in boards.iter().zip(firmwares) {
+        s.push_str(&row(
+            "firmware with the simulated actuator (`vsa-firmware`, step sweep)",
+            *b,
+            &f.footprint,
+            &f.stack,
         ));
     }
     s.push_str(&format!(
@@ -498,7 +441,7 @@ fn markdown(
         fmt_bytes(nucleo.static_ram())
     ));
 
-    // The issue's targets, checked.
+    // The performance targets (README, Performance), checked.
     let at = |b: Board| boards.iter().position(|x| *x == b);
     let (m3, m4) = (at(Board::QemuM3), at(Board::QemuM4));
     let r = |i: Option<usize>, name: &str| i.and_then(|i| benches[i].results.get(name)).copied();
@@ -576,17 +519,28 @@ mod tests {
     use super::*;
 
     #[test]
-    fn bench_lines_parse() {
-        let line = "           PRINT bench control_step: n 10000, sum 19087220, min 1579, max 2868 counts  (bench/src/main.rs:110)";
-        assert_eq!(
-            parse_bench_line(line),
-            Some(("control_step".to_owned(), 10000, 19_087_220, 2868))
+    fn bench_records_convert_to_instructions() {
+        let lines: Vec<String> = [
+            "PRINT RESULT clock sysclk_hz=125000000",
+            "PRINT RESULT f32_agreement ticks=10000 duty_diff_mean_permille=0.5 duty_diff_max_permille=3 link_angle_diff_max_urad=12 faults=0",
+            "PRINT RESULT stack peak=2312 size=113960 boot=2312 running=800  (f.rs:1)",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .chain(BENCHES.iter().map(|(name, _)| {
+            format!("PRINT RESULT bench name={name} n=10 sum=1000 min=50 max=250  (b.rs:1)")
+        }))
+        .collect();
+        // 125 MHz at shift 3: one instruction is one SysTick count.
+        let run = parse_run(&lines, 3).unwrap();
+        assert_eq!(run.sysclk_hz, 125_000_000);
+        let step = run.results["control_step"];
+        assert_eq!((step.n, step.mean, step.max), (10, 100.0, 250.0));
+        assert!(run.agreement.unwrap().contains("max 3 permille"));
+        assert_eq!(parse_stack(&lines).unwrap(), (2312, 113_960, 2312, 800));
+        assert!(
+            parse_run(&lines[..3], 3).is_err(),
+            "every benchmark must be there"
         );
-        assert_eq!(parse_bench_line("bench board qemu-m4: sysclk 1 Hz"), None);
-        let lines = vec![
-            "x INFO  stack: high-water 2312 bytes of 113960 bytes (boot 2312, running 800)  (f.rs:1)"
-                .to_owned(),
-        ];
-        assert_eq!(parse_stack(&lines), Some((2312, 113_960, 2312, 800)));
     }
 }

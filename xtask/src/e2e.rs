@@ -7,9 +7,9 @@
 //! count the frames as link activity and latch nothing); then the heartbeats stop and the
 //! board must latch `command-timeout`, which a clear must recover from for good.
 //!
-//! The recorded motion is held to the controller issue's tolerances for a 0.5 rad move
-//! with a 0.3 N·m load (`--load-mnm 300`): overshoot ≤ 5 %, within ±1 encoder count of the
-//! target from 400 ms after the move started to the end of the recording.
+//! The recorded motion is held to the controller's tolerances for a 0.5 rad move with a
+//! 0.3 N·m load (`--load-mnm 300`): overshoot ≤ 5 %, within ±1 encoder count of the target
+//! from 400 ms after the command to the end of the recording (`plant::metrics`).
 
 use std::io::Write;
 use std::path::Path;
@@ -20,12 +20,14 @@ use anyhow::{anyhow, bail, ensure, Context, Result};
 use client::protocol::{encode_to_vec, Frame, Request};
 use client::qemu::{Board as ClientBoard, LogSink, QemuBoard, QemuOptions};
 use client::{Client, ErrorCode, FaultCode, State, TelemetryFrame};
+use plant::metrics::{move_command_tick, StepResponse};
+use plant::ENCODER_COUNT_RAD;
 
 use crate::board::Board;
 use crate::defmt_log::LogFormat;
 
 /// One encoder count, µrad.
-const COUNT_URAD: f64 = std::f64::consts::TAU / 4096.0 * 1e6;
+const COUNT_URAD: f64 = ENCODER_COUNT_RAD * 1e6;
 
 /// Move target and duration.
 const TARGET_URAD: i32 = 500_000;
@@ -349,8 +351,9 @@ fn wait_board(c: &mut Client, ticks: u32) -> Result<()> {
     }
 }
 
-/// Checks the recording of the first move; returns overshoot %, the settled error
-/// (counts), the samples and the samples lost.
+/// Checks the recording of the first move with the figures of `plant::metrics` (clock
+/// from the tick the board took the command, recovered from the recorded reference);
+/// returns overshoot %, the settled error (counts), the samples and the samples lost.
 fn check_move(frames: &[TelemetryFrame]) -> Result<(f64, f64, usize, u64)> {
     ensure!(frames.len() > 100, "only {} samples recorded", frames.len());
     let lost: u64 = frames
@@ -358,31 +361,39 @@ fn check_move(frames: &[TelemetryFrame]) -> Result<(f64, f64, usize, u64)> {
         .map(|w| u64::from(w[1].counter.wrapping_sub(w[0].counter).saturating_sub(1)))
         .sum();
     let r0 = frames[0].sample.reference_urad;
+    let refs: Vec<(u32, i32)> = frames
+        .iter()
+        .map(|f| (f.sample.tick, f.sample.reference_urad))
+        .collect();
+    let t0 = move_command_tick(r0, TARGET_URAD, MOVE_MS, &refs)
+        .ok_or_else(|| anyhow!("the reference never moved"))?;
     let start = frames
         .iter()
-        .position(|f| f.sample.reference_urad != r0)
-        .ok_or_else(|| anyhow!("the reference never moved"))?;
-    let t0 = frames[start].sample.tick;
-    let first = f64::from(frames[start].sample.link_angle_urad);
-    let target = f64::from(TARGET_URAD);
+        .rev()
+        .find(|f| f.sample.tick <= t0)
+        .ok_or_else(|| anyhow!("no sample before the move"))?;
     let last = frames.last().map_or(t0, |f| f.sample.tick);
     ensure!(
         last >= t0 + 1_000,
         "the recording ends {} ms after the move started",
-        last - t0
+        last.saturating_sub(t0)
     );
-    let peak = frames[start..]
-        .iter()
-        .map(|f| f64::from(f.sample.link_angle_urad))
-        .fold(f64::MIN, f64::max);
-    let overshoot = ((peak - target) / (target - first) * 100.0).max(0.0);
-    let settled = frames[start..]
-        .iter()
-        .filter(|f| f.sample.tick >= t0 + 400)
-        .map(|f| (f64::from(f.sample.link_angle_urad) - target).abs() / COUNT_URAD)
-        .fold(0.0, f64::max);
+    // The measured angle is the centre of its count: ±1 count of the true angle is ≤ 1.5
+    // counts of it. Steady from 400 ms: settled by then and stays.
+    let mut step = StepResponse::new(
+        f64::from(start.sample.link_angle_urad),
+        f64::from(TARGET_URAD),
+        1.5 * COUNT_URAD,
+        0.4,
+    );
+    for f in frames.iter().filter(|f| f.sample.tick > t0) {
+        let t_s = f64::from(f.sample.tick - t0) * 1e-3;
+        step.record(t_s, f64::from(f.sample.link_angle_urad));
+    }
+    let fig = step.figures();
+    let overshoot = fig.overshoot_pct;
+    let settled = fig.steady_state_error / COUNT_URAD;
     ensure!(overshoot <= 5.0, "overshoot {overshoot:.2} % > 5 %");
-    // The measured angle is the centre of its count: ±1 count is ≤ 1.5 counts from it.
     ensure!(
         settled <= 1.5,
         "from 400 ms after the move started the link was up to {settled:.2} counts from the target"

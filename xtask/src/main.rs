@@ -17,6 +17,7 @@ mod e2e;
 mod firmware;
 mod flash;
 mod qemu;
+mod results;
 mod scenarios;
 mod setup;
 mod test;

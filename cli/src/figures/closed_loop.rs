@@ -18,13 +18,15 @@
 //!   1 kHz tick, f64 on the host, started at rest at the initial value), t = 0…1 s.
 
 use model::control::{Command, Config};
+use model::sensors::encoder_delta;
 use model::{Angle, Design, Length};
 use plant::harness::{self, Scenario};
-use plant::{Plant, ENCODER_COUNTS, POT_COUNTS_PER_RAD};
+use plant::{Plant, ENCODER_COUNT_RAD, POT_COUNTS_PER_RAD};
 use plotters::prelude::SeriesLabelPosition;
 
 use super::plot::{Figure, Panel, Series, COLORS};
-use super::{c, f, Csv};
+use super::{c, Csv};
+use crate::design::to_f64;
 use crate::format::trim;
 
 /// Load levels per side of the load test.
@@ -102,12 +104,11 @@ pub fn load_test(d: &Design, len: Length) -> Result<LoadTest, String> {
     let k = f64::from(pc.coupling.stiffness_nm_per_rad);
     let j = f64::from(pc.link.inertia_kg_m2);
     pc.link.viscous_nm_s_per_rad = (1.4 * (k * j).sqrt()) as f32;
-    let cap = f(d.torque_capacity(len).map_err(err("capacity"))?.get());
+    let cap = to_f64(d.torque_capacity(len).map_err(err("capacity"))?.get());
     let mut plant = Plant::new(pc);
     let levels = (1..=LEVELS)
         .chain((-LEVELS..LEVELS).rev())
         .chain(-LEVELS + 1..0);
-    let enc_rad = std::f64::consts::TAU / f64::from(ENCODER_COUNTS);
     let pot0 = f64::from(pc.sensors.pot_center_counts);
     let (mut tru, mut sen) = (Vec::new(), Vec::new());
     for lv in levels {
@@ -120,9 +121,8 @@ pub fn load_test(d: &Design, len: Length) -> Result<LoadTest, String> {
                 let st = plant.state();
                 sum_t += st.gear_angle_rad - st.link_angle_rad;
                 let gear = (f64::from(r.gear_pot) - pot0) / f64::from(POT_COUNTS_PER_RAD);
-                let e = i32::from(r.link_encoder);
-                let e = if e >= 2048 { e - 4096 } else { e };
-                let link = (f64::from(e) + 0.5) * enc_rad;
+                let e = encoder_delta(r.link_encoder, 0);
+                let link = (f64::from(e) + 0.5) * ENCODER_COUNT_RAD;
                 sum_s += gear - link;
             }
         }
@@ -142,7 +142,7 @@ pub fn load_test(d: &Design, len: Length) -> Result<LoadTest, String> {
     };
     Ok(LoadTest {
         k_true: k_of(&tru, 0.0),
-        k_sensor: k_of(&sen, MIN_SPAN_COUNTS * enc_rad),
+        k_sensor: k_of(&sen, MIN_SPAN_COUNTS * ENCODER_COUNT_RAD),
     })
 }
 
@@ -154,7 +154,7 @@ pub fn fig8_identified_stiffness(d: &Design) -> Result<(Figure, Csv), String> {
     let (mut eb, mut sh, mut it, mut is) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for l in 100..=500 {
         let len = Length::from_micro(l * 10_000).map_err(err("length"))?;
-        let x = f(len.get());
+        let x = to_f64(len.get());
         eb.push((x, d.stiffness(len).map_err(err("k"))?.get().to_num::<f64>()));
         sh.push((
             x,

@@ -75,7 +75,8 @@ use plant::PlantConfig;
 use plotters::prelude::SeriesLabelPosition;
 
 use super::plot::{Figure, Panel, Series, COLORS};
-use super::{c, f, Csv};
+use super::{c, Csv};
+use crate::design::to_f64;
 use crate::format::trim;
 
 /// Amplitude of the sine, rad.
@@ -279,11 +280,11 @@ pub fn energy_per_cycle_figure(d: &Design) -> Result<(Figure, Csv), String> {
         }
     }
     let mut csv = Csv::new(header);
-    let j_link = f(Config::paper(Length::from_int(1)).link_inertia.get()) * 1e-6;
+    let j_link = to_f64(Config::paper(Length::from_int(1)).link_inertia.get()) * 1e-6;
     let mut sim: Vec<Vec<(f64, f64)>> = vec![Vec::new(); SERIES.len()];
     let mut est: Vec<Vec<(f64, f64)>> = vec![Vec::new(); SERIES.len()];
     for len in lengths() {
-        let x = f(len.get());
+        let x = to_f64(len.get());
         let k = d.stiffness(len).map_err(err("k"))?.get().to_num::<f64>();
         let mut row = vec![c(x), c(k), c((k / j_link).sqrt() / std::f64::consts::TAU)];
         for (i, m) in SERIES.iter().enumerate() {

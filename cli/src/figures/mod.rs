@@ -24,6 +24,7 @@ use model::beam::BeamModel;
 use model::{Angle, Design, DesignParams, Hysteresis, Length, Setting, Torque};
 use plotters::prelude::SeriesLabelPosition;
 
+use crate::design::to_f64;
 use crate::error::{CliError, CliResult};
 use crate::format::trim;
 use plot::{Figure, Panel, Series, COLORS};
@@ -110,10 +111,6 @@ fn write_figure(stem: &Path, fig: &Figure, csv: &Csv) -> Result<(), String> {
     fig.write(stem)
 }
 
-fn f(x: I32F32) -> f64 {
-    x.to_num::<f64>()
-}
-
 /// A number for CSV: the f64 nearest to the model's value (shortest round-trip form).
 fn c(x: f64) -> String {
     format!("{x}")
@@ -172,21 +169,21 @@ pub fn fig4_hysteresis(d: &Design) -> Result<(Figure, Csv), String> {
                 model::Branch::Unloading => "unloading",
             };
             csv.push(&[
-                c(f(x.get())),
+                c(to_f64(x.get())),
                 step.to_string(),
-                c(f(phi.get())),
+                c(to_f64(phi.get())),
                 branch.to_string(),
-                c(f(tau.get())),
-                c(f(elastic.get())),
-                c(f(friction_part.get())),
+                c(to_f64(tau.get())),
+                c(to_f64(elastic.get())),
+                c(to_f64(friction_part.get())),
             ]);
-            pts.push((f(phi.get()), f(tau.get())));
-            fr.push((f(phi.get()), f(friction_part.get())));
+            pts.push((to_f64(phi.get()), to_f64(tau.get())));
+            fr.push((to_f64(phi.get()), to_f64(friction_part.get())));
         }
         let label = format!(
             "x = {name}·l = {} mm (±{} rad)",
-            trim(f(x.get())),
-            crate::format::sig(f(s.deflection_capacity().get()), 3)
+            trim(to_f64(x.get())),
+            crate::format::sig(to_f64(s.deflection_capacity().get()), 3)
         );
         loops.push(Series {
             label: Some(label.clone()),
@@ -206,7 +203,7 @@ pub fn fig4_hysteresis(d: &Design) -> Result<(Figure, Csv), String> {
     let fig = Figure {
         title: format!(
             "Fig. 4 — friction hysteresis, one cycle to ±θ_cap (E–B, μ = {}, no free play)",
-            trim(f(d.params().friction.get()))
+            trim(to_f64(d.params().friction.get()))
         ),
         panels: vec![
             Panel {
@@ -248,7 +245,7 @@ pub fn fig5_stiffness(d: &Design) -> Result<(Figure, Csv), String> {
             .stiffness_timoshenko(len)
             .ok()
             .map(|k| k.get().to_num::<f64>());
-        let x = f(len.get());
+        let x = to_f64(len.get());
         csv.push(&[c(x), co(k), co(kt)]);
         eb.extend(k.map(|k| (x, k)));
         sh.extend(kt.map(|k| (x, k)));
@@ -285,8 +282,8 @@ pub fn fig5_stiffness(d: &Design) -> Result<(Figure, Csv), String> {
     let fig = Figure {
         title: format!(
             "Fig. 5 — joint stiffness vs clutch length over the adjustable range [t_c, l] = [{}, {}] mm",
-            trim(f(lo.get())),
-            trim(f(hi.get()))
+            trim(to_f64(lo.get())),
+            trim(to_f64(hi.get()))
         ),
         panels: vec![panel(false), panel(true)],
         size: (1500, 650),
@@ -312,19 +309,19 @@ pub fn fig6_deflection(d: &Design) -> Result<(Figure, Csv), String> {
         let dr = Design::new(p).map_err(model_err("design"))?;
         let (mut ok, mut over) = (Vec::new(), Vec::new());
         for len in grid(lo, hi) {
-            let theta = dr.deflection(LOAD, len).ok().map(|a| f(a.get()));
+            let theta = dr.deflection(LOAD, len).ok().map(|a| to_f64(a.get()));
             let cap = dr.torque_capacity(len).ok();
             let within = cap.map(|cap| LOAD <= cap);
             csv.push(&[
-                c(f(len.get())),
-                c(f(r)),
+                c(to_f64(len.get())),
+                c(to_f64(r)),
                 co(theta),
                 co(theta.map(f64::to_degrees)),
-                co(cap.map(|t| f(t.get()))),
+                co(cap.map(|t| to_f64(t.get()))),
                 within.map_or_else(String::new, |w| w.to_string()),
             ]);
             if let Some(th) = theta {
-                let pt = (f(len.get()), th.to_degrees());
+                let pt = (to_f64(len.get()), th.to_degrees());
                 if within == Some(true) {
                     ok.push(pt);
                 } else {
@@ -336,7 +333,7 @@ pub fn fig6_deflection(d: &Design) -> Result<(Figure, Csv), String> {
                 }
             }
         }
-        let label = format!("r = {} mm", trim(f(r)));
+        let label = format!("r = {} mm", trim(to_f64(r)));
         let has_ok = !ok.is_empty();
         series.push(Series {
             label: has_ok.then(|| label.clone()),
@@ -356,9 +353,9 @@ pub fn fig6_deflection(d: &Design) -> Result<(Figure, Csv), String> {
     let fig = Figure {
         title: format!(
             "Fig. 6 — deflection at {} N·m vs clutch length (E–B, n = {}, R = {} mm)",
-            trim(f(LOAD.get())),
+            trim(to_f64(LOAD.get())),
             d.params().beams,
-            trim(f(d.params().pitch_radius.get()))
+            trim(to_f64(d.params().pitch_radius.get()))
         ),
         panels: vec![Panel {
             caption: "dashed: the load exceeds the stress-limited capacity (beams yield)".into(),
@@ -382,19 +379,19 @@ pub fn capacity(d: &Design) -> Result<(Figure, Csv), String> {
     let mut csv = Csv::new("length_mm,torque_capacity_nm,deflection_capacity_rad,load_nm");
     let mut pts = Vec::new();
     for len in grid(lo, hi) {
-        let cap = d.torque_capacity(len).ok().map(|t| f(t.get()));
-        let th = d.deflection_capacity(len).ok().map(|a| f(a.get()));
-        csv.push(&[c(f(len.get())), co(cap), co(th), c(f(LOAD.get()))]);
-        pts.extend(cap.map(|t| (f(len.get()), t)));
+        let cap = d.torque_capacity(len).ok().map(|t| to_f64(t.get()));
+        let th = d.deflection_capacity(len).ok().map(|a| to_f64(a.get()));
+        csv.push(&[c(to_f64(len.get())), co(cap), co(th), c(to_f64(LOAD.get()))]);
+        pts.extend(cap.map(|t| (to_f64(len.get()), t)));
     }
-    let load = f(LOAD.get());
-    let (x0, x1) = (f(lo.get()), f(hi.get()));
+    let load = to_f64(LOAD.get());
+    let (x0, x1) = (to_f64(lo.get()), to_f64(hi.get()));
     let p = d.params();
     let fig = Figure {
         title: format!(
             "Stress-limited torque capacity vs clutch length (σ_allow = {} MPa, r = {} mm)",
-            trim(f(p.allowable_stress.get())),
-            trim(f(p.beam_radius.get()))
+            trim(to_f64(p.allowable_stress.get())),
+            trim(to_f64(p.beam_radius.get()))
         ),
         panels: vec![Panel {
             caption: "the beams yield where the load is above the capacity".into(),

@@ -1,29 +1,105 @@
-//! Board support: everything that differs between the boards, behind one small surface.
+//! Board support: everything that differs between the boards, behind two traits.
 //!
-//! Each board module provides `pac` (the device crate RTIC binds to), `NAME`,
-//! `SYSCLK_HZ`, `init`, `run_config`, `exit`, the actuator I/O `Io` (driver traits) and the
-//! `World` around the control step, with `drain_world` for its log events. The free-running µs clock on TIM2 is
-//! shared code: it is the tick accounting's independent time base.
-
-#[cfg(any(feature = "qemu-m4", feature = "qemu-m3"))]
-mod qemu;
-#[cfg(any(feature = "qemu-m4", feature = "qemu-m3"))]
-pub use qemu::*;
-#[cfg(any(feature = "qemu-m4", feature = "qemu-m3"))]
-mod semihosting_exit;
-#[cfg(any(feature = "qemu-m4", feature = "qemu-m3"))]
-mod sim;
-#[cfg(any(feature = "qemu-m4", feature = "qemu-m3"))]
-pub use semihosting_exit::exit;
-#[cfg(any(feature = "qemu-m4", feature = "qemu-m3"))]
-pub use sim::*;
+//! - [`Board`]: what a board provides: its name and core clock, how it reads the run's
+//!   options, brings up its peripherals ([`Parts`]) and ends a run. [`Selected`] is the
+//!   board the cargo features chose; [`pac`] its device crate (RTIC binds to it by path,
+//!   which a trait cannot carry).
+//! - [`TickHooks`]: what a board does around each control step: before it (the emulated
+//!   boards advance the simulated actuator and present its readings; the real one feeds
+//!   the watchdog) and after it (a scenario records its results), and the events it has for
+//!   the log.
+//!
+//! Shared by every board: the USART2 host-link driver ([`serial`]), the free-running µs
+//! clock on TIM2 ([`IndependentClock`], the tick accounting's independent time base) and
+//! the idle wait.
 
 #[cfg(feature = "nucleo-f446re")]
 mod nucleo;
-#[cfg(feature = "nucleo-f446re")]
-pub use nucleo::*;
+#[cfg(feature = "qemu")]
+mod qemu;
+#[cfg(feature = "qemu")]
+mod semihosting_exit;
+pub mod serial;
+#[cfg(feature = "qemu")]
+mod sim;
 
-use crate::run::IdleMode;
+#[cfg(feature = "nucleo-f446re")]
+pub use nucleo::{pac, Nucleo as Selected};
+#[cfg(feature = "qemu")]
+pub use qemu::{pac, Qemu as Selected, USART_BRR};
+pub use serial::{Serial, SerialRx, SerialTx};
+#[cfg(feature = "qemu")]
+pub use sim::{at_rest, SimulatedIo, Simulation, POT_AT_REST, SERVED_CLUTCH_MM};
+
+use crate::run_config::{IdleMode, RunConfig};
+use model::servo::{Servo, TickOutput};
+use model::supervisor::Fault;
+
+/// What a board provides to the firmware (see the module docs).
+pub trait Board {
+    /// Board name as logged at boot.
+    const NAME: &'static str;
+    /// Core clock, Hz: SysTick counts it.
+    const SYSCLK_HZ: u32;
+    /// The actuator's sensors and H-bridge behind the driver traits
+    /// (a `drivers::tick_io::TickIo`).
+    type Io;
+    /// What the board does around each control step.
+    type Hooks: TickHooks<Io = Self::Io>;
+
+    /// The run's options: the emulated boards read them from the QEMU command line.
+    fn run_config() -> RunConfig;
+
+    /// Brings the board up for `run`.
+    fn init(device: pac::Peripherals, run: &RunConfig) -> Parts<Self>;
+
+    /// Ends the run with its verdict: the emulated boards exit QEMU with it, the real
+    /// board logs it and halts.
+    fn exit(passed: bool) -> !;
+}
+
+/// What a board does around each control step, and the events it has for the log.
+pub trait TickHooks {
+    /// The board's actuator I/O.
+    type Io;
+    /// Something for the log (a scenario's progress on the emulated boards).
+    type Event;
+
+    /// Start of a tick, before the sensors are read.
+    fn before_step(&mut self, io: &mut Self::Io, servo: &mut Servo) -> TickPlan;
+
+    /// End of a tick, after the bridge was written: `late` is the missed-deadline fault
+    /// if this tick latched one.
+    fn after_step(&mut self, servo: &Servo, out: &TickOutput, late: Option<Fault>, io: &Self::Io);
+
+    /// The oldest event not yet logged.
+    fn pop_event(&mut self) -> Option<Self::Event>;
+
+    /// Whether `event` is the run's last (the control loop's costs are logged after it).
+    fn ends_run(event: &Self::Event) -> bool;
+}
+
+/// What the start of a tick asks of the control loop.
+pub struct TickPlan {
+    /// Busy-wait past the deadline in this tick (fault injection; emulated boards only).
+    pub overrun: bool,
+}
+
+/// The selected board's actuator I/O.
+pub type Io = <Selected as Board>::Io;
+/// The selected board's tick hooks.
+pub type Hooks = <Selected as Board>::Hooks;
+/// The selected board's log events.
+pub type Event = <Hooks as TickHooks>::Event;
+/// The selected board's name as logged at boot.
+pub const NAME: &str = <Selected as Board>::NAME;
+/// The selected board's core clock, Hz.
+pub const SYSCLK_HZ: u32 = <Selected as Board>::SYSCLK_HZ;
+
+/// Ends the run on the selected board (see [`Board::exit`]).
+pub fn exit(passed: bool) -> ! {
+    Selected::exit(passed)
+}
 
 /// Waits for the next interrupt: WFI, or a spin on the emulated boards (see `qemu` for why).
 #[inline(always)]
@@ -34,17 +110,16 @@ pub fn wait_for_interrupt(mode: IdleMode) {
     }
 }
 
-/// What `init` hands over to the application.
-pub struct Parts {
+/// What [`Board::init`] hands over to the application.
+pub struct Parts<B: Board + ?Sized> {
     /// Free-running µs clock, independent of SysTick.
     pub clock: IndependentClock,
     /// The actuator's sensors and H-bridge, behind the `drivers` traits.
-    pub io: Io,
-    /// What surrounds the control step: the simulated actuator and its scenario on the
-    /// emulated boards, the watchdog on the real one.
-    pub world: World,
+    pub io: B::Io,
+    /// What the board does around each control step.
+    pub hooks: B::Hooks,
     /// The servo (controller + supervisor), configured for the board.
-    pub servo: model::servo::Servo,
+    pub servo: Servo,
     /// The command service, with the configuration the servo was built from.
     pub service: service::Service,
     /// The host link's receive half (USART2).
@@ -75,6 +150,3 @@ impl IndependentClock {
         self.tim.cnt().read().bits()
     }
 }
-
-mod serial;
-pub use serial::{Serial, SerialRx, SerialTx};

@@ -52,9 +52,9 @@
 //!   section (≈ 3 µs with interrupts masked, at most one poll limit on a timeout), so the two
 //!   handles may live in different tasks. The current is sampled at whatever phase of the
 //!   PWM period the tick falls on (not synchronised to TIM1).
-//! - [`World`]: the independent watchdog, LSI / 32 (1 ms per count at the nominal 32 kHz),
+//! - [`Watchdog`]: the independent watchdog, LSI / 32 (1 ms per count at the nominal 32 kHz),
 //!   reload 79: 80 ms nominal, 54–151 ms over the LSI's 17–47 kHz datasheet range. The
-//!   1 kHz tick feeds it ([`World::begin_tick`]); a loop that stalls (a tick that never
+//!   1 kHz tick feeds it ([`TickHooks::before_step`]); a loop that stalls (a tick that never
 //!   returns, SysTick no longer firing, interrupts masked, a panic: panic-probe ends in a
 //!   HardFault loop) stops feeding it and the IWDG resets the MCU, which puts every pin back
 //!   to a floating input (bridge off through its pull-downs). The next boot logs that the
@@ -65,14 +65,16 @@
 //! the watchdog pauses (DBGMCU freeze bits), so a breakpoint neither drives the motor nor
 //! resets the board. Without a debugger the freeze bits have no effect.
 
-use super::{IndependentClock, Parts};
-use crate::run::{IdleMode, RunConfig};
+use super::{Board, IndependentClock, Parts, Serial, TickHooks, TickPlan};
+use crate::run_config::{IdleMode, RunConfig};
 use core::cell::RefCell;
 use core::convert::Infallible;
 use cortex_m::interrupt::{self, Mutex};
 use defmt_rtt as _;
+use drivers::tick_io::TickIo;
 use drivers::{AngleSensor, CurrentSensor, SensorError};
 use model::control::Config as ControlConfig;
+use model::sensors::{ENCODER_COUNTS, POT_COUNTS};
 use model::servo::{Servo, TickOutput};
 use model::supervisor::{Fault, SupervisorConfig};
 use model::{Design, Length};
@@ -87,11 +89,8 @@ use stm32f4xx_hal::{
 
 pub use stm32f4xx_hal::pac;
 
-/// Board name as logged at boot.
-pub const NAME: &str = "nucleo-f446re (STM32F446RE, Cortex-M4F)";
-
 /// Core clock, Hz.
-pub const SYSCLK_HZ: u32 = 180_000_000;
+const SYSCLK_HZ: u32 = 180_000_000;
 
 /// APB1 clock, Hz (its timers, TIM2 and TIM3, run at twice this).
 const PCLK1_HZ: u32 = 45_000_000;
@@ -138,7 +137,8 @@ const _: () = assert!(ADC_POLL_LIMIT >= 7 * ADC_CONVERSION_CORE_CYCLES / 4);
 const ADC_STABILISATION_CORE_CYCLES: u32 = 5 * (SYSCLK_HZ / 1_000_000);
 
 /// Link encoder counts per turn (1024 lines × 4 edges).
-const LINK_COUNTS_PER_TURN: u16 = 4096;
+const LINK_COUNTS_PER_TURN: u16 = ENCODER_COUNTS;
+const _: () = assert!(LINK_COUNTS_PER_TURN == 1024 * 4);
 
 /// Host link baud rate, Bd: fast enough for 500 Hz telemetry (≈ 31-byte frames, 15.5 kB/s
 /// needs ≥ 155 kBd); the ST-LINK/V2-1 virtual COM port carries it.
@@ -154,17 +154,11 @@ const WATCHDOG_TIMEOUT_MS: u16 = 80;
 /// the bound is STM32Cube's: 6 LSI periods at the largest prescaler).
 const WATCHDOG_UPDATE_WAIT_MS: u32 = 50;
 
-/// The board's sensors and motor driver, behind the `drivers` traits.
-pub struct Io {
-    /// Link-side angle: TIM3 quadrature encoder, 4096 counts per turn.
-    pub link: LinkEncoder,
-    /// Gear-side angle: potentiometer on ADC1, 1024 counts full scale.
-    pub pot: GearPot,
-    /// Motor current: shunt amplifier on ADC1, 12-bit raw.
-    pub current: CurrentAdc,
-    /// The H-bridge (TIM1 CH1 PWM, direction and enable pins).
-    pub bridge: Bridge,
-}
+/// The board's sensors and motor driver, behind the `drivers` traits: the link-side
+/// angle (TIM3 quadrature encoder, 4096 counts per turn), the gear-side angle
+/// (potentiometer on ADC1, 1024 counts full scale), the motor current (shunt amplifier on
+/// ADC1, 12-bit raw) and the H-bridge (TIM1 CH1 PWM, direction and enable pins).
+pub type Io = TickIo<LinkEncoder, GearPot, CurrentAdc, MotorPwm, DirPin, EnPin>;
 
 /// The H-bridge on its PWM channel and pins.
 pub type Bridge = drivers::HBridge<MotorPwm, DirPin, EnPin>;
@@ -175,13 +169,42 @@ pub type DirPin = PA9<Output<PushPull>>;
 /// H-bridge enable pin (PA10): low = outputs off.
 pub type EnPin = PA10<Output<PushPull>>;
 
-/// Sets the clocks and brings up the peripherals; the watchdog runs from the end of `init`.
-///
-/// # Panics
-/// Only here, at init, with a defmt message: the clocks did not come out as configured,
-/// the H-bridge could not be put in its safe state, or the watchdog did not take its
-/// configuration.
-pub fn init(device: pac::Peripherals, _run: &RunConfig) -> Parts {
+/// The real board.
+pub struct Nucleo;
+
+impl Board for Nucleo {
+    const NAME: &'static str = "nucleo-f446re (STM32F446RE, Cortex-M4F)";
+    const SYSCLK_HZ: u32 = SYSCLK_HZ;
+    type Io = Io;
+    type Hooks = Watchdog;
+
+    /// The real board runs until it is reset.
+    fn run_config() -> RunConfig {
+        RunConfig::new(IdleMode::Wfi)
+    }
+
+    /// Sets the clocks and brings up the peripherals; the watchdog runs from the end of
+    /// `init`.
+    ///
+    /// # Panics
+    /// Only here, at init, with a defmt message: the clocks did not come out as configured,
+    /// the H-bridge could not be put in its safe state, or the watchdog did not take its
+    /// configuration.
+    fn init(device: pac::Peripherals, _run: &RunConfig) -> Parts<Self> {
+        init(device)
+    }
+
+    /// There is nowhere to exit to: report the verdict and keep running.
+    fn exit(passed: bool) -> ! {
+        defmt::info!("run finished (passed: {=bool}); halting", passed);
+        loop {
+            cortex_m::asm::wfi();
+        }
+    }
+}
+
+/// See [`Nucleo::init`].
+fn init(device: pac::Peripherals) -> Parts<Nucleo> {
     // Before the clock setup rewrites RCC: was the last reset the watchdog's?
     let watchdog_reset = device.RCC.csr().read().wdgrstf().bit_is_set();
     device.RCC.csr().modify(|_, w| w.rmvf().set_bit());
@@ -257,20 +280,15 @@ pub fn init(device: pac::Peripherals, _run: &RunConfig) -> Parts {
     let _link_rx = gpioa.pa3.into_alternate::<7>();
     pac::USART2::enable(&mut rcc);
     pac::USART2::reset(&mut rcc);
-    let (serial_rx, serial_tx) = super::Serial::start(device.USART2, LINK_BRR);
+    let (serial_rx, serial_tx) = Serial::start(device.USART2, LINK_BRR);
 
-    let world = World::start(device.IWDG);
+    let hooks = Watchdog::start(device.IWDG);
     let (servo, service) = default_servo();
 
     Parts {
         clock: IndependentClock::start(tim2, prescaler),
-        io: Io {
-            link,
-            pot: GearPot { _adc: () },
-            current: CurrentAdc { _adc: () },
-            bridge,
-        },
-        world,
+        io: TickIo::new(link, GearPot { _adc: () }, CurrentAdc { _adc: () }, bridge),
+        hooks,
         servo,
         service,
         serial_rx,
@@ -391,7 +409,7 @@ pub struct GearPot {
 }
 
 impl AngleSensor for GearPot {
-    const FULL_SCALE: u16 = 1024;
+    const FULL_SCALE: u16 = POT_COUNTS;
 
     fn read_counts(&mut self) -> Result<u16, SensorError> {
         Adc1::convert_shared(POT_CHANNEL).map(|raw| raw >> 2)
@@ -492,12 +510,13 @@ impl Adc1 {
     }
 }
 
-/// Board-wide services of the control tick: the independent watchdog.
-pub struct World {
+/// What surrounds the real board's control step: the independent watchdog, fed every
+/// tick.
+pub struct Watchdog {
     iwdg: pac::IWDG,
 }
 
-impl World {
+impl Watchdog {
     /// Starts the IWDG with an 80 ms timeout (RM0390, IWDG; STM32Cube's sequence: start,
     /// which also starts the LSI, then configure, wait for the update, reload).
     fn start(iwdg: pac::IWDG) -> Self {
@@ -524,40 +543,28 @@ impl World {
         iwdg.kr().write(|w| w.key().feed());
         Self { iwdg }
     }
+}
 
-    /// Called at the start of every control tick: feeds the watchdog.
-    pub fn begin_tick(&mut self, _io: &mut Io, _servo: &mut Servo) -> TickPlan {
+impl TickHooks for Watchdog {
+    type Io = Io;
+    /// The real world has no events to log.
+    type Event = core::convert::Infallible;
+
+    /// Feeds the watchdog.
+    fn before_step(&mut self, _io: &mut Io, _servo: &mut Servo) -> TickPlan {
         self.iwdg.kr().write(|w| w.key().feed());
         TickPlan { overrun: false }
     }
 
-    /// End of a tick: nothing to record on the real board.
-    pub fn end_tick(&mut self, _servo: &Servo, _out: &TickOutput, _late: Option<Fault>, _io: &Io) {}
-}
+    /// Nothing to record on the real board.
+    fn after_step(&mut self, _servo: &Servo, _out: &TickOutput, _late: Option<Fault>, _io: &Io) {}
 
-/// What the start of a tick asks of the control loop (never an injected overrun here).
-pub struct TickPlan {
-    /// Busy-wait past the deadline in this tick (fault injection; emulated boards only).
-    pub overrun: bool,
-}
+    fn pop_event(&mut self) -> Option<core::convert::Infallible> {
+        None
+    }
 
-/// The real world has no scenario events to log.
-pub fn drain_world(
-    _control: &mut crate::control::ControlLoop,
-    _push: &mut impl FnMut(crate::report::LogItem),
-) {
-}
-
-/// The real board runs until it is reset.
-pub fn run_config() -> RunConfig {
-    RunConfig::new(IdleMode::Wfi)
-}
-
-/// There is nowhere to exit to: report the verdict and keep running.
-pub fn exit(passed: bool) -> ! {
-    defmt::info!("run finished (passed: {=bool}); halting", passed);
-    loop {
-        cortex_m::asm::wfi();
+    fn ends_run(event: &core::convert::Infallible) -> bool {
+        match *event {}
     }
 }
 

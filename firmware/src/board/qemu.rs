@@ -29,8 +29,10 @@
 //! boards therefore idle in a spin loop by default, which keeps both the rate and the
 //! determinism. Reproduce with `cargo xtask run --idle wfi` (the self-check fails).
 
-use super::{exit, IndependentClock, Parts};
-use crate::run::{IdleMode, RunConfig};
+use super::semihosting_exit::exit;
+use super::sim::{SimulatedIo, Simulation};
+use super::{Board, IndependentClock, Parts, Serial};
+use crate::run_config::{IdleMode, RunConfig};
 
 #[cfg(feature = "qemu-m4")]
 pub use stm32f4::stm32f405 as pac;
@@ -38,62 +40,72 @@ pub use stm32f4::stm32f405 as pac;
 #[cfg(feature = "qemu-m3")]
 pub use stm32f2::stm32f215 as pac;
 
-/// Board name as logged at boot.
-#[cfg(feature = "qemu-m4")]
-pub const NAME: &str = "qemu-m4 (QEMU netduinoplus2, STM32F405, Cortex-M4F)";
-/// Board name as logged at boot.
-#[cfg(feature = "qemu-m3")]
-pub const NAME: &str = "qemu-m3 (QEMU netduino2, STM32F205, Cortex-M3)";
-
-/// Core clock of the emulated SoC, Hz (fixed by the QEMU machine).
-#[cfg(feature = "qemu-m4")]
-pub const SYSCLK_HZ: u32 = 168_000_000;
-/// Core clock of the emulated SoC, Hz (fixed by the QEMU machine).
-#[cfg(feature = "qemu-m3")]
-pub const SYSCLK_HZ: u32 = 120_000_000;
-
 /// USART2's baud-rate divider. QEMU's STM32F2xx USART model ignores it (bytes move at the
 /// speed of its character device, here a TCP socket); the value is 115 200 Bd at the
 /// F405's 42 MHz APB1 for the record.
-const QEMU_USART_BRR: u16 = 365;
+pub const USART_BRR: u16 = 365;
 
 /// Input clock of QEMU's STM32F2xx/F4xx TIM2–5 model, Hz.
 const QEMU_TIMER_INPUT_HZ: u32 = 1_000_000_000;
 
-/// Brings up what the emulated board has, and the simulated actuator running `run`'s
-/// scenario.
-pub fn init(device: pac::Peripherals, run: &RunConfig) -> Parts {
-    let prescaler = (QEMU_TIMER_INPUT_HZ / 1_000_000 - 1) as u16;
-    let (world, servo, service) = if run.serve {
-        super::World::serve(run.serve_load_mnm)
-    } else {
-        super::World::new(run.scenario)
-    };
-    let (serial_rx, serial_tx) = super::Serial::start(device.USART2, QEMU_USART_BRR);
-    Parts {
-        clock: IndependentClock::start(device.TIM2, prescaler),
-        io: super::Io::new(),
-        world,
-        servo,
-        service,
-        serial_rx,
-        serial_tx,
-    }
-}
+/// The emulated board the features selected.
+pub struct Qemu;
 
-/// Reads the run's options from the semihosting command line (`-semihosting-config
-/// arg=…`); the first argument is the program name.
-pub fn run_config() -> RunConfig {
-    let Ok(args) = semihosting::experimental::env::args::<256>() else {
-        defmt::warn!("no semihosting command line; running the default time");
-        return RunConfig::new(IdleMode::Spin);
-    };
-    let words = (&args).skip(1).map_while(Result::ok);
-    match RunConfig::parse(words, IdleMode::Spin) {
-        Ok(config) => config,
-        Err(error) => {
-            defmt::error!("bad run arguments: {}", error);
-            exit(false)
+impl Board for Qemu {
+    #[cfg(feature = "qemu-m4")]
+    const NAME: &'static str = "qemu-m4 (QEMU netduinoplus2, STM32F405, Cortex-M4F)";
+    #[cfg(feature = "qemu-m3")]
+    const NAME: &'static str = "qemu-m3 (QEMU netduino2, STM32F205, Cortex-M3)";
+
+    /// Fixed by the QEMU machine.
+    #[cfg(feature = "qemu-m4")]
+    const SYSCLK_HZ: u32 = 168_000_000;
+    /// Fixed by the QEMU machine.
+    #[cfg(feature = "qemu-m3")]
+    const SYSCLK_HZ: u32 = 120_000_000;
+
+    type Io = SimulatedIo;
+    type Hooks = Simulation;
+
+    /// Reads the run's options from the semihosting command line (`-semihosting-config
+    /// arg=…`); the first argument is the program name.
+    fn run_config() -> RunConfig {
+        let Ok(args) = semihosting::experimental::env::args::<256>() else {
+            defmt::warn!("no semihosting command line; running the default time");
+            return RunConfig::new(IdleMode::Spin);
+        };
+        let words = (&args).skip(1).map_while(Result::ok);
+        match RunConfig::parse(words, IdleMode::Spin) {
+            Ok(config) => config,
+            Err(error) => {
+                defmt::error!("bad run arguments: {}", error);
+                exit(false)
+            }
         }
+    }
+
+    /// Brings up what the emulated board has, and the simulated actuator running `run`'s
+    /// scenario (or serving the host).
+    fn init(device: pac::Peripherals, run: &RunConfig) -> Parts<Self> {
+        let prescaler = (QEMU_TIMER_INPUT_HZ / 1_000_000 - 1) as u16;
+        let (hooks, servo, service) = if run.serve {
+            Simulation::serve(run.serve_load_mnm)
+        } else {
+            Simulation::new(run.scenario)
+        };
+        let (serial_rx, serial_tx) = Serial::start(device.USART2, USART_BRR);
+        Parts {
+            clock: IndependentClock::start(device.TIM2, prescaler),
+            io: super::sim::at_rest(),
+            hooks,
+            servo,
+            service,
+            serial_rx,
+            serial_tx,
+        }
+    }
+
+    fn exit(passed: bool) -> ! {
+        exit(passed)
     }
 }

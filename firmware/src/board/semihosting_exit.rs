@@ -1,7 +1,6 @@
-//! How an emulated run ends: the exit status through semihosting, and the panic handlers
-//! (defmt frames leave through `defmt-semihosting`).
-//!
-//! Shared as a source file with the bench crate's binaries (`bench/src/board.rs`).
+//! How a run on an emulated board ends: the exit status through semihosting, and the panic
+//! handlers (defmt frames leave through `defmt-semihosting`). Every program of this crate
+//! on an emulated board links them.
 
 use core::sync::atomic::{AtomicBool, Ordering};
 use defmt_semihosting as _;

@@ -1,11 +1,9 @@
 //! USART2, the host link: the same on every board (the Nucleo's ST-LINK virtual COM port
 //! is wired to USART2 on PA2/PA3; the emulated boards' second `-serial` device is
 //! USART2), through the board's device crate `super::pac`.
-//!
-//! Shared as a source file with the bench crate's control-only image
-//! (`bench/src/board.rs`), so that its footprint counts the firmware's own driver.
 
 use super::pac;
+use heapless::spsc::Producer;
 
 /// Polls of TXE before one byte is given up (far more than one character takes at the
 /// slowest baud rate used: 10 bits at 921 600 Bd is ≈ 2 000 core cycles at 180 MHz).
@@ -66,6 +64,15 @@ impl SerialRx {
             return None;
         }
         Some(self.usart.dr().read().dr().bits() as u8)
+    }
+
+    /// Moves every byte received into `queue`. A full queue loses the byte: its frame then
+    /// fails its CRC, and the protocol handler counts it and answers with an error.
+    #[inline]
+    pub fn receive_into(&mut self, queue: &mut Producer<'_, u8>) {
+        while let Some(byte) = self.read() {
+            let _ = queue.enqueue(byte);
+        }
     }
 }
 

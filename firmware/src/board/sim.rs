@@ -1,14 +1,16 @@
-//! The emulated boards' peripherals: the simulated actuator behind the same driver traits
-//! the real board implements. The H-bridge driver writes simulated PWM and GPIO lines; the
-//! sensors return the readings the plant produced at the start of the tick.
+//! The emulated boards' peripherals and what surrounds their control step: the simulated
+//! actuator behind the same driver traits the real board implements. The H-bridge driver
+//! writes simulated PWM and GPIO lines; the sensors return the readings the plant produced
+//! at the start of the tick.
 //!
-//! Each tick the [`World`] advances the plant by one control period with the bridge lines
-//! as they are, applies the scenario's injections and actions, and presents the new
+//! Each tick the [`Simulation`] advances the plant by one control period with the bridge
+//! lines as they are, applies the scenario's injections and actions, and presents the new
 //! readings to the sensors (`plant::scenario` has the per-tick protocol).
 
-use drivers::sim::{SimChannel, SimPin, SimPwm};
-use drivers::HBridge;
+use super::{TickHooks, TickPlan};
+use drivers::sim::SimTickIo;
 use model::control::Config;
+use model::sensors::{ADC_COUNTS, ADC_MID, ENCODER_COUNTS, POT_COUNTS};
 use model::servo::{Servo, TickOutput};
 use model::supervisor::{Fault, SupervisorConfig};
 use model::{Design, Length};
@@ -16,68 +18,40 @@ use plant::scenario::{Action, BridgeLines, ScenarioEvent, ScenarioId, ScenarioRu
 use plant::served::ServedActuator;
 use service::Service;
 
-/// Link magnetic encoder, 4096 counts per turn.
-pub type LinkEncoder = SimChannel<4096>;
-/// Gear potentiometer, 1024 counts over 300°.
-pub type GearPot = SimChannel<1024>;
-/// Current ADC, 12 bit.
-pub type CurrentAdc = SimChannel<4096>;
-/// The H-bridge on the simulated lines.
-pub type Bridge = HBridge<SimPwm, SimPin, SimPin>;
+/// The emulated boards' actuator I/O: the link encoder, gear pot and current ADC of
+/// `model::sensors`, and the H-bridge, all on simulated lines.
+pub type SimulatedIo = SimTickIo<ENCODER_COUNTS, POT_COUNTS, ADC_COUNTS>;
 
-/// The board's actuator I/O.
-pub struct Io {
-    /// Link encoder.
-    pub link: LinkEncoder,
-    /// Gear potentiometer.
-    pub pot: GearPot,
-    /// Motor current ADC.
-    pub current: CurrentAdc,
-    /// H-bridge.
-    pub bridge: Bridge,
-}
+/// Gear pot counts at mid-travel, where the actuator rests before the first tick.
+pub const POT_AT_REST: u16 = POT_COUNTS / 2;
 
-impl Io {
-    /// All lines low, sensors at mid-scale until the first tick.
-    pub fn new() -> Io {
-        let bridge = match HBridge::new(SimPwm::default(), SimPin::default(), SimPin::default()) {
-            Ok(b) => b,
-            // The simulated lines cannot fail (`Infallible`).
-            Err(_) => defmt::panic!("simulated H-bridge failed"),
-        };
-        Io {
-            link: SimChannel { value: 0 },
-            pot: SimChannel { value: 512 },
-            current: SimChannel { value: 2048 },
-            bridge,
-        }
-    }
-
-    /// The bridge lines as the driver set them.
-    pub fn lines(&self) -> BridgeLines {
-        BridgeLines {
-            enabled: self.bridge.en().is_high(),
-            forward: self.bridge.dir().is_high(),
-            duty_permille: self.bridge.pwm().duty(),
-        }
+/// All lines low, the sensors presenting the actuator at rest until the first tick.
+pub fn at_rest() -> SimulatedIo {
+    match SimulatedIo::simulated(0, POT_AT_REST, ADC_MID) {
+        Ok(io) => io,
+        // The simulated lines cannot fail (`Infallible`).
+        Err(_) => defmt::panic!("simulated H-bridge failed"),
     }
 }
 
-/// What the start of a tick asks of the control loop.
-pub struct TickPlan {
-    /// Busy-wait past the deadline in this tick (fault injection).
-    pub overrun: bool,
+/// The bridge lines as the driver set them.
+fn lines(io: &SimulatedIo) -> BridgeLines {
+    BridgeLines {
+        enabled: io.bridge.en().is_high(),
+        forward: io.bridge.dir().is_high(),
+        duty_permille: io.bridge.pwm().duty(),
+    }
 }
 
-/// The simulated world: a scripted scenario and its plant, or (serving the host protocol)
-/// the plant alone, commanded from the host.
-pub struct World {
-    kind: WorldKind,
+/// The simulated actuator around the control step: a scripted scenario and its plant, or
+/// (serving the host protocol) the plant alone, commanded from the host.
+pub struct Simulation {
+    kind: SimulationKind,
 }
 
-// One world per run, in a static: the size difference does not matter.
+// One simulation per run, in a static: the size difference does not matter.
 #[allow(clippy::large_enum_variant)]
-enum WorldKind {
+enum SimulationKind {
     Scenario {
         run: ScenarioRun,
         actions: heapless::Vec<Action, 3>,
@@ -85,9 +59,9 @@ enum WorldKind {
     Served(ServedActuator),
 }
 
-impl World {
+impl Simulation {
     /// Starts scenario `id`; also returns the servo configured for it and its service.
-    pub fn new(id: ScenarioId) -> (World, Servo, Service) {
+    pub fn new(id: ScenarioId) -> (Simulation, Servo, Service) {
         let run = match ScenarioRun::new(id) {
             Ok(r) => r,
             Err(e) => defmt::panic!("scenario {=str} rejected: {}", id.name(), e),
@@ -102,17 +76,17 @@ impl World {
             None => defmt::panic!("scenario {=str} has no segment", id.name()),
         };
         let service = Service::new(*servo.design(), config, plan.supervision);
-        let kind = WorldKind::Scenario {
+        let kind = SimulationKind::Scenario {
             run,
             actions: heapless::Vec::new(),
         };
-        (World { kind }, servo, service)
+        (Simulation { kind }, servo, service)
     }
 
-    /// The world of a board serving the host protocol: the paper design at
+    /// The simulation of a board serving the host protocol: the paper design at
     /// [`SERVED_CLUTCH_MM`], `load_mnm` mN·m hung on the link once the motor drives
     /// (see `plant::served`), the servo disabled.
-    pub fn serve(load_mnm: i32) -> (World, Servo, Service) {
+    pub fn serve(load_mnm: i32) -> (Simulation, Servo, Service) {
         let design = Design::paper();
         let config = Config::paper(Length::from_int(SERVED_CLUTCH_MM));
         let supervision = SupervisorConfig::DEFAULT;
@@ -124,20 +98,28 @@ impl World {
             Ok(p) => p,
             Err(e) => defmt::panic!("served plant rejected: {}", e),
         };
-        let kind = WorldKind::Served(plant);
+        let kind = SimulationKind::Served(plant);
         (
-            World { kind },
+            Simulation { kind },
             servo,
             Service::new(design, config, supervision),
         )
     }
+}
+
+/// Clutch length a serving board starts at, mm.
+pub const SERVED_CLUTCH_MM: i32 = 3;
+
+impl TickHooks for Simulation {
+    type Io = SimulatedIo;
+    type Event = ScenarioEvent;
 
     /// Start of a tick: the plant advances one period with the bridge lines as they are,
     /// the new readings go to the sensors, a scenario's actions to the servo.
-    pub fn begin_tick(&mut self, io: &mut Io, servo: &mut Servo) -> TickPlan {
+    fn before_step(&mut self, io: &mut SimulatedIo, servo: &mut Servo) -> TickPlan {
         let (r, overrun) = match &mut self.kind {
-            WorldKind::Scenario { run, actions } => {
-                let overrun = run.begin_tick(io.lines(), actions);
+            SimulationKind::Scenario { run, actions } => {
+                let overrun = run.begin_tick(lines(io), actions);
                 for a in actions.iter() {
                     if let Err(e) = run.apply(servo, a) {
                         defmt::warn!("scenario action refused: {}", e);
@@ -145,48 +127,36 @@ impl World {
                 }
                 (run.readings(), overrun)
             }
-            WorldKind::Served(plant) => {
-                (plant.tick(io.lines(), servo.controller().schedule()), false)
+            SimulationKind::Served(plant) => {
+                (plant.tick(lines(io), servo.controller().schedule()), false)
             }
         };
-        io.link.value = r.link_encoder;
-        io.pot.value = r.gear_pot;
-        io.current.value = r.current_adc;
+        io.present(r.link_encoder, r.gear_pot, r.current_adc);
         TickPlan { overrun }
     }
 
     /// End of a tick: a scenario's metrics, hash and fault timing.
-    pub fn end_tick(&mut self, servo: &Servo, out: &TickOutput, late: Option<Fault>, io: &Io) {
-        if let WorldKind::Scenario { run, .. } = &mut self.kind {
-            run.end_tick(servo, out, late, io.lines());
+    fn after_step(
+        &mut self,
+        servo: &Servo,
+        out: &TickOutput,
+        late: Option<Fault>,
+        io: &SimulatedIo,
+    ) {
+        if let SimulationKind::Scenario { run, .. } = &mut self.kind {
+            run.end_tick(servo, out, late, lines(io));
         }
     }
 
     /// The next event for the log.
-    pub fn pop_event(&mut self) -> Option<ScenarioEvent> {
+    fn pop_event(&mut self) -> Option<ScenarioEvent> {
         match &mut self.kind {
-            WorldKind::Scenario { run, .. } => run.pop_event(),
-            WorldKind::Served(_) => None,
+            SimulationKind::Scenario { run, .. } => run.pop_event(),
+            SimulationKind::Served(_) => None,
         }
     }
-}
 
-/// Clutch length a serving board starts at, mm.
-pub const SERVED_CLUTCH_MM: i32 = 3;
-
-/// Moves the world's events into the log queue; after the last one, the cost accounting.
-pub fn drain_world(
-    control: &mut crate::control::ControlLoop,
-    push: &mut impl FnMut(crate::report::LogItem),
-) {
-    use crate::report::LogItem;
-    let world = control.world_mut();
-    let mut finished = false;
-    while let Some(ev) = world.pop_event() {
-        finished |= matches!(ev, ScenarioEvent::Finished(_));
-        push(LogItem::Scenario(ev));
-    }
-    if finished {
-        push(LogItem::Costs(control.stats()));
+    fn ends_run(event: &ScenarioEvent) -> bool {
+        matches!(event, ScenarioEvent::Finished(_))
     }
 }

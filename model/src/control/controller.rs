@@ -3,25 +3,25 @@
 
 use fixed::types::I32F32;
 
-use super::config::{
-    encoder_delta, Config, ControlError, Schedule, ADC_COUNTS_PER_A, ADC_MID, ENCODER_COUNTS,
-    POT_COUNTS,
-};
+use super::config::Config;
+use super::error::ControlError;
 use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Q16_ONE};
+use super::schedule::Schedule;
 use super::trajectory::{Command, Reference, Trajectory};
 use crate::design::Design;
+use crate::sensors::{
+    encoder_delta, turn_fraction_bits, ADC_COUNTS_PER_A, ADC_MID, ENCODER_COUNTS,
+    ENCODER_HALF_COUNT_Q32, POT_COUNTS, POT_COUNT_Q32,
+};
 use crate::units::{Angle, Torque};
 
-/// Half an encoder count, π/4096 rad, in I32F32 bits (rounded).
-const HALF_COUNT_Q32: i64 = 3_294_199;
-/// One encoder count per tick as a velocity, 2π/4096 rad · 1000 /s, Q16 (1.534 rad/s).
-const COUNT_PER_TICK_Q16: i32 = 100_531;
-/// One pot count, 300°/1024 = 5π/(3·1024) rad, in I32F32 bits (rounded).
-pub const POT_COUNT_Q32: i64 = 21_961_324;
+/// One encoder count per tick (1000 ticks/s) as a velocity, 2π/4096 rad · 1000 /s, Q16
+/// (1.534 rad/s).
+const COUNT_PER_TICK_Q16: i32 = turn_fraction_bits(1000, ENCODER_COUNTS as u64, 16) as i32;
 /// ADC counts → A in Q16: 1024 counts/A, so ×64.
 const ADC_TO_Q16_SHIFT: u32 = 6;
 
-const _: () = assert!(ADC_COUNTS_PER_A << ADC_TO_Q16_SHIFT == Q16_ONE);
+const _: () = assert!((ADC_COUNTS_PER_A as i32) << ADC_TO_Q16_SHIFT == Q16_ONE);
 
 /// Raw sensor values as the board reads them in this tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -212,16 +212,6 @@ impl Controller {
         self.defl_valid = false;
     }
 
-    /// Signed encoder counts in [−2048, 2048) relative to the calibrated zero.
-    fn centred_counts(&self, raw: u16) -> i32 {
-        let v = (i32::from(raw) - self.sched.encoder_zero) & (ENCODER_COUNTS - 1);
-        if v >= ENCODER_COUNTS / 2 {
-            v - ENCODER_COUNTS
-        } else {
-            v
-        }
-    }
-
     /// One 1 kHz control step. Total: no panics, saturating arithmetic throughout.
     pub fn step(&mut self, m: &Measurements) -> Output {
         let s = self.sched;
@@ -230,12 +220,13 @@ impl Controller {
         let delta = if self.started {
             encoder_delta(m.link_encoder, self.enc_prev)
         } else {
-            self.n_link = self.centred_counts(m.link_encoder);
+            // Counts in [−2048, 2048) relative to the calibrated zero.
+            self.n_link = encoder_delta(m.link_encoder, s.encoder_zero);
             0
         };
         self.enc_prev = m.link_encoder;
         self.n_link = self.n_link.saturating_add(delta);
-        let theta_l = (2 * i64::from(self.n_link) + 1).saturating_mul(HALF_COUNT_Q32);
+        let theta_l = (2 * i64::from(self.n_link) + 1).saturating_mul(ENCODER_HALF_COUNT_Q32);
         if !self.started {
             self.started = true;
             if !self.commanded {
@@ -248,7 +239,7 @@ impl Controller {
             .saturating_add(s.alpha.apply(v_raw.saturating_sub(self.w_link)));
 
         // --- current and the back-EMF observer of the gear velocity ---
-        let adc = i32::from(m.current_adc) - ADC_MID;
+        let adc = i32::from(m.current_adc) - i32::from(ADC_MID);
         let current = adc << ADC_TO_Q16_SHIFT; // A, Q16 (|adc| < 2¹⁶: no overflow)
         let applied = m.applied_duty.unwrap_or(self.duty_prev);
         let w_gear = q32_to_q16(
@@ -266,11 +257,11 @@ impl Controller {
         self.w_gear_prev = w_gear;
         let tau_i =
             s.kt.apply(current)
-                .saturating_sub(s.jg_fs.apply(dw))
+                .saturating_sub(s.gear_inertia_per_dt.apply(dw))
                 .saturating_sub(s.bv.apply(w_gear));
         let tau = match m.gear_pot {
             Some(pot) if s.w_defl.apply(Q16_ONE) != 0 => {
-                let pot = i32::from(pot) & (POT_COUNTS - 1);
+                let pot = i32::from(pot) & (i32::from(POT_COUNTS) - 1);
                 let theta_g = i64::from(pot - s.pot_center).saturating_mul(POT_COUNT_Q32);
                 let phi = q32_to_q16(theta_g.saturating_sub(theta_l));
                 let mag = phi.saturating_abs().saturating_sub(s.free_play_q16).max(0);
@@ -284,7 +275,7 @@ impl Controller {
         // --- reference and error (zero inside the reference's encoder count) ---
         let r: Reference = self.traj.advance();
         let e_q32 = r.position.to_bits().saturating_sub(theta_l);
-        let in_count = (-HALF_COUNT_Q32..HALF_COUNT_Q32).contains(&e_q32);
+        let in_count = (-ENCODER_HALF_COUNT_Q32..ENCODER_HALF_COUNT_Q32).contains(&e_q32);
         let e = if in_count { 0 } else { q32_to_q16(e_q32) };
 
         // Derivative on the measured (gear) velocity; the reference velocity goes through

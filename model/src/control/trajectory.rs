@@ -24,7 +24,7 @@
 
 use fixed::types::I64F64;
 
-use super::config::ControlError;
+use super::error::ControlError;
 use super::gain::{q32_to_q16, sat_i32};
 use super::sine::{cos_q30, sin_q30};
 use crate::units::{Angle, Frequency};
@@ -254,19 +254,20 @@ impl Trajectory {
                 }
                 let a = fx(amplitude.to_bits());
                 let w = fx(frequency.to_bits());
-                let ov = ControlError::TrajectoryOutOfRange;
-                let va = a.checked_mul(w).ok_or(ov)?;
-                let aa = va.checked_mul(w).ok_or(ov)?;
+                let out_of_range = ControlError::TrajectoryOutOfRange;
+                let va = a.checked_mul(w).ok_or(out_of_range)?;
+                let aa = va.checked_mul(w).ok_or(out_of_range)?;
                 let q16 = |v: I64F64| -> Result<i32, ControlError> {
-                    i32::try_from(v.to_bits() >> 48).map_err(|_| ov)
+                    i32::try_from(v.to_bits() >> 48).map_err(|_| out_of_range)
                 };
                 // Phase increment per 1 ms tick: ω/(2π)·10⁻³ turns = ω/(2π)·10⁻³·2³².
                 let turns = w
                     .checked_div(I64F64::TAU)
                     .and_then(|f| f.checked_mul_int(1 << 32))
                     .and_then(|f| f.checked_div_int(1000))
-                    .ok_or(ov)?;
-                let dphase = u32::try_from(turns.round().to_bits() >> 64).map_err(|_| ov)?;
+                    .ok_or(out_of_range)?;
+                let dphase =
+                    u32::try_from(turns.round().to_bits() >> 64).map_err(|_| out_of_range)?;
                 Mode::Sine {
                     center: self.pos,
                     amp: q16(a)?,

@@ -5,7 +5,7 @@
 //! The same parts as `vsa-firmware` minus the plant and the scenario harness: RTIC 2 with
 //! the SysTick-bound control task at priority 3 (sensors through the driver traits →
 //! `Servo::tick` → H-bridge driver, missed-deadline check, telemetry sample), the host
-//! link (USART2 receive interrupt at priority 2, the firmware's own driver; the protocol
+//! link (USART2 receive interrupt at priority 2, the firmware library's driver; the protocol
 //! handler and command service in a priority-1 task, `service::link`), a bounded log queue
 //! drained by a priority-1 task into defmt (faults, a once-a-second report), defmt over
 //! semihosting.
@@ -19,13 +19,9 @@
 #![no_main]
 #![deny(missing_docs)]
 
-// The firmware's stack painting, the very source file.
-#[path = "../../../firmware/src/stack.rs"]
-mod stack;
-
 /// Link encoder, gear pot and current ADC readings the simulated channels present (read
 /// with volatile loads, as from a peripheral, so they are not constants to the compiler).
-static READINGS: [u16; 3] = [0, 512, 2048];
+static READINGS: [u16; 3] = [0, firmware::board::POT_AT_REST, model::sensors::ADC_MID];
 
 /// Reading `i` of [`READINGS`].
 fn reading(i: usize) -> u16 {
@@ -45,8 +41,6 @@ fn script_requests() -> u32 {
     SCRIPT.first().copied().map_or(0, u32::from)
 }
 
-/// Control loop rate, Hz.
-const CONTROL_HZ: u32 = 1000;
 /// Seconds to run.
 const RUN_SECONDS: u32 = 2;
 
@@ -56,12 +50,12 @@ enum LogItem {
     Second { second: u32, overruns: u32 },
 }
 
-#[rtic::app(device = bench::board::pac, dispatchers = [CAN1_RX0])]
+#[rtic::app(device = firmware::board::pac, dispatchers = [CAN1_RX0])]
 mod app {
-    use super::{reading, LogItem, CONTROL_HZ, RUN_SECONDS};
-    use bench::board;
-    use bench::io::Io;
+    use super::{reading, LogItem, RUN_SECONDS};
     use cortex_m::peripheral::{syst::SystClkSource, NVIC, SCB};
+    use firmware::board::{self, Io};
+    use firmware::timing::CONTROL_HZ;
     use heapless::spsc::{Consumer, Producer, Queue};
     use model::control::{Command, Config};
     use model::servo::{BridgeDemand, Servo};
@@ -94,7 +88,7 @@ mod app {
         telemetry_queue: Queue<Sample, TELEMETRY_QUEUE> = Queue::new(),
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
-        crate::stack::paint();
+        firmware::stack::paint();
         let mut syst = cx.core.SYST;
         let design = Design::paper();
         let config = Config::paper(Length::from_int(3));
@@ -105,9 +99,7 @@ mod app {
         if servo.enable().is_err() || servo.command(Command::Hold).is_err() {
             defmt::panic!("servo refused to enable");
         }
-        let Some(io) = Io::new() else {
-            defmt::panic!("H-bridge driver refused the lines")
-        };
+        let io = board::at_rest();
         let (log_tx, log_rx) = cx.local.queue.split();
         let (rx_tx, rx_rx) = cx.local.rx_queue.split();
         let (telemetry_tx, telemetry_rx) = cx.local.telemetry_queue.split();
@@ -191,12 +183,13 @@ mod app {
         }
     }
 
+    // The host link's two tasks, declared by each program that serves it (an RTIC app
+    // declares its own tasks; their work is the library's): `duplicates` pairs them.
+
     /// The host link's receive interrupt: queue the bytes, wake the link task.
     #[task(binds = USART2, priority = 2, local = [serial_rx, rx_tx])]
     fn uart_rx(cx: uart_rx::Context) {
-        while let Some(byte) = cx.local.serial_rx.read() {
-            let _ = cx.local.rx_tx.enqueue(byte);
-        }
+        cx.local.serial_rx.receive_into(cx.local.rx_tx);
         NVIC::pend(board::pac::Interrupt::EXTI1);
     }
 
@@ -233,14 +226,7 @@ mod app {
                 LogItem::Second { second, overruns } => {
                     defmt::info!("second {=u32}: {=u32} overruns", second, overruns);
                     if second >= RUN_SECONDS {
-                        let st = crate::stack::high_water();
-                        defmt::info!(
-                            "stack: high-water {=u32} bytes of {=u32} bytes (boot {=u32}, running {=u32})",
-                            st.peak,
-                            st.size,
-                            st.boot,
-                            st.running
-                        );
+                        firmware::stack::log_high_water();
                         board::exit(overruns == 0);
                     }
                 }
@@ -250,7 +236,7 @@ mod app {
 
     #[idle]
     fn idle(_: idle::Context) -> ! {
-        crate::stack::repaint_after_init();
+        firmware::stack::repaint_after_init();
         loop {
             cortex_m::asm::nop();
         }

@@ -1,4 +1,4 @@
-//! `vsa-bench`: instruction counts of the control code on an emulated board (issue 7).
+//! `vsa-bench`: instruction counts of the control code on an emulated board.
 //!
 //! Run by `cargo xtask bench` under QEMU `-icount shift=N,sleep=off`: every instruction
 //! advances virtual time by 2^N ns, and SysTick counts the core clock, so a SysTick
@@ -24,7 +24,7 @@
 //! produce. Each tick times:
 //!
 //! * `control_step`: sensors read through the driver traits → `Servo::tick` (controller +
-//!   supervisor) → H-bridge driver, as `firmware/src/control.rs` does; the world (plant)
+//!   supervisor) → H-bridge driver (`drivers::tick_io`, as the firmware's tick); the plant
 //!   excluded. `control_step_f32`: the same with the f32 port (`bench::float::FloatServo`).
 //! * `controller`, `controller_f32`: `Controller::step` alone (a copy of the servo's
 //!   controller fed the same measurements), and its f32 port.
@@ -46,15 +46,16 @@
 //! entry and return are not instructions: QEMU's icount does not count the hardware
 //! stacking a real core spends 12 cycles on each way.)
 //!
-//! Each result is one defmt line `bench NAME: n N, sum S, min A, max B counts` (net of the
-//! calibration); the run ends with `bench done` and exit status 0.
+//! Each result is one line `RESULT bench name=NAME n=N sum=S min=A max=B` in SysTick counts
+//! net of the calibration (the format: `firmware::report`); the run ends with `bench done`
+//! and exit status 0.
 #![no_std]
 #![no_main]
 #![deny(missing_docs)]
 
-use bench::board;
 use core::hint::black_box;
 use cortex_m::peripheral::{syst::SystClkSource, SYST};
+use firmware::board;
 
 /// SysTick reload for free-running measurements (24-bit counter).
 const FREE_RELOAD: u32 = 0x00FF_FFFF;
@@ -108,7 +109,7 @@ impl Stat {
 
     fn log(&self, name: &str) {
         defmt::println!(
-            "bench {=str}: n {=u32}, sum {=u64}, min {=u32}, max {=u32} counts",
+            "RESULT bench name={=str} n={=u32} sum={=u64} min={=u32} max={=u32}",
             name,
             self.n,
             self.sum,
@@ -134,8 +135,9 @@ mod suite {
         length_mm, stiffness_nm_per_rad, FloatBeam, FloatController, FloatMeasurements,
         FloatSchedule, FloatServo,
     };
-    use bench::io::Io;
+    use firmware::board::{at_rest, SimulatedIo, POT_AT_REST};
     use model::control::{Command, Config, Measurements};
+    use model::sensors::POT_COUNT_Q32;
     use model::servo::Servo;
     use model::supervisor::SupervisorConfig;
     use model::{Angle, Design, Frequency, Length, Torque};
@@ -200,10 +202,7 @@ mod suite {
                 defmt::error!("bench: plant rejected at L = {=i32} mm", mm);
                 continue;
             };
-            let (Some(mut io), Some(mut fio)) = (Io::new(), Io::new()) else {
-                defmt::error!("bench: H-bridge driver refused the lines");
-                continue;
-            };
+            let (mut io, mut fio): (SimulatedIo, SimulatedIo) = (at_rest(), at_rest());
             let _ = servo.enable();
             let _ = fservo.enable();
             let mut ctl = servo.controller().clone();
@@ -230,6 +229,8 @@ mod suite {
                     freadings.current_adc,
                 );
 
+                // The same step for the two servos (fixed point, then the f32 port): two
+                // closures on purpose, each timed on its own concrete types.
                 let (out, c) = time((&mut io, &mut servo), |(io, servo)| {
                     let input = io.read_inputs();
                     let out = servo.tick(&input);
@@ -272,7 +273,8 @@ mod suite {
                     reference_urad: micro(out.control.reference.to_bits()),
                     link_angle_urad: micro(out.control.link_angle.to_bits()),
                     gear_angle_urad: micro(
-                        i64::from(i32::from(readings.gear_pot) - 512) * 21_961_324,
+                        i64::from(i32::from(readings.gear_pot) - i32::from(POT_AT_REST))
+                            * POT_COUNT_Q32,
                     ),
                     current_ma: (micro(out.control.current.to_bits()) / 1000) as i16,
                     torque_unm: micro(out.control.torque_estimate.to_bits()),
@@ -316,7 +318,7 @@ mod suite {
         cap.log("capacity_check");
         tel.log("telemetry");
         defmt::println!(
-            "bench f32 port vs fixed point, each in its own closed loop: {=u32} ticks, |duty difference| mean {=f32} max {=i32} permille, link angle difference max {=u32} urad, {=u32} faults",
+            "RESULT f32_agreement ticks={=u32} duty_diff_mean_permille={=f32} duty_diff_max_permille={=i32} link_angle_diff_max_urad={=u32} faults={=u32}",
             ticks,
             sum_duty_diff as f32 / ticks.max(1) as f32,
             worst_duty_diff,
@@ -407,7 +409,7 @@ mod ticks {
     }
 }
 
-#[rtic::app(device = bench::board::pac)]
+#[rtic::app(device = firmware::board::pac)]
 mod app {
     use super::{board, SystClkSource, FREE_RELOAD, TICK_PERIOD};
     use cortex_m::peripheral::SYST;
@@ -426,11 +428,8 @@ mod app {
         syst.clear_current();
         syst.disable_interrupt();
         syst.enable_counter();
-        defmt::println!(
-            "bench board {=str}: sysclk {=u32} Hz",
-            board::NAME,
-            board::SYSCLK_HZ
-        );
+        defmt::println!("bench board {=str}", board::NAME);
+        defmt::println!("RESULT clock sysclk_hz={=u32}", board::SYSCLK_HZ);
         let cal = super::calibrate();
         defmt::println!("bench calibration: {=u32} counts", cal);
         super::suite::beam(cal);

@@ -1,14 +1,15 @@
-//! vsa firmware: the 1 kHz control loop of the variable-stiffness actuator.
+//! `vsa-firmware`: the 1 kHz control loop of the variable-stiffness actuator.
 //!
-//! One RTIC 2 application for three boards, chosen by a cargo feature (see `board`):
-//! `qemu-m4` (default), `qemu-m3` and `nucleo-f446re`.
+//! One RTIC 2 application for three boards, chosen by a cargo feature (see
+//! `firmware::board`): `qemu-m4` (default), `qemu-m3` and `nucleo-f446re`.
 //!
 //! Priorities (highest first):
 //! 3. `control_tick`: hardware task bound to SysTick at 1 kHz. It runs one control period
-//!    (`control::ControlLoop::tick`: world → sensors → servo → H-bridge) and detects a
+//!    (`tick::ControlLoop::tick`: board hooks → sensors → servo → H-bridge) and detects a
 //!    missed deadline: if SysTick fired again before the task finished, the period overran
 //!    (the supervisor latches `deadline-missed` and the motor goes off). Everything to log
-//!    goes into a bounded queue, never blocking: a full queue drops and counts.
+//!    goes into a bounded queue, never blocking: a full queue drops and counts. The board's
+//!    events of the tick (a scenario's progress) are drained into the same queue.
 //! 2. `uart_rx`: hardware task bound to USART2's interrupt: moves each received byte of
 //!    the host link into a bounded queue (a full queue loses the byte: its frame then fails
 //!    its CRC, and the protocol handler counts it and gives an error reply) and pends
@@ -28,37 +29,17 @@
 #![no_main]
 #![deny(missing_docs)]
 
-#[cfg(not(any(feature = "qemu-m4", feature = "qemu-m3", feature = "nucleo-f446re")))]
-compile_error!(
-    "no board selected: build with exactly one of the features `qemu-m4` (default), \
-     `qemu-m3` or `nucleo-f446re` (e.g. `--no-default-features --features qemu-m3`)"
-);
+// The log's timestamp: µs since SysTick started.
+defmt::timestamp!("{=u64:us}", firmware::timing::uptime_us());
 
-#[cfg(any(
-    all(feature = "qemu-m4", feature = "qemu-m3"),
-    all(feature = "qemu-m4", feature = "nucleo-f446re"),
-    all(feature = "qemu-m3", feature = "nucleo-f446re"),
-))]
-compile_error!(
-    "two boards selected: enable exactly one of `qemu-m4`, `qemu-m3`, `nucleo-f446re` \
-     (add `--no-default-features` when choosing a board other than `qemu-m4`)"
-);
-
-mod board;
-mod control;
-mod report;
-mod run;
-mod stack;
-mod timing;
-
-#[rtic::app(device = crate::board::pac, dispatchers = [CAN1_RX0, CAN1_RX1])]
+#[rtic::app(device = firmware::board::pac, dispatchers = [CAN1_RX0, CAN1_RX1])]
 mod app {
-    use crate::board;
-    use crate::control::ControlLoop;
-    use crate::report::{LogItem, Reporter};
-    use crate::run::RunConfig;
-    use crate::timing::{self, TickAccounting};
     use cortex_m::peripheral::{NVIC, SYST};
+    use firmware::board::{self, Board, Hooks, Selected, TickHooks};
+    use firmware::report::{LogItem, Reporter};
+    use firmware::run_config::{IdleMode, RunConfig};
+    use firmware::tick::ControlLoop;
+    use firmware::timing::{self, TickAccounting};
     use heapless::spsc::{Consumer, Producer, Queue};
     use service::link::{Link, Sample, RX_QUEUE, TELEMETRY_QUEUE};
     use service::Actuator;
@@ -83,7 +64,7 @@ mod app {
         log_rx: Consumer<'static, LogItem>,
         dropped: u32,
         reporter: Reporter,
-        idle_mode: crate::run::IdleMode,
+        idle_mode: IdleMode,
         link: Link<'static, board::SerialTx>,
         serial_rx: board::SerialRx,
         rx_tx: Producer<'static, u8>,
@@ -96,10 +77,10 @@ mod app {
         telemetry_queue: Queue<Sample, TELEMETRY_QUEUE> = Queue::new(),
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
-        crate::stack::paint();
+        firmware::stack::paint();
         let mut core = cx.core;
-        let run: RunConfig = board::run_config();
-        let parts = board::init(cx.device, &run);
+        let run: RunConfig = Selected::run_config();
+        let parts = Selected::init(cx.device, &run);
         let (log_tx, log_rx) = cx.local.queue.split();
         let (rx_tx, rx_rx) = cx.local.rx_queue.split();
         let (telemetry_tx, telemetry_rx) = cx.local.telemetry_queue.split();
@@ -121,7 +102,7 @@ mod app {
                 actuator: Actuator::new(parts.servo),
             },
             Local {
-                control: ControlLoop::new(parts.io, parts.world),
+                control: ControlLoop::new(parts.io, parts.hooks),
                 accounting: TickAccounting::new(),
                 board_clock: parts.clock,
                 panic_at_tick: run.panic_at_tick,
@@ -168,8 +149,16 @@ mod app {
                 *dropped = dropped.saturating_add(1);
             }
         };
-        // The world's events of this tick (an injection) before the fault they cause.
-        board::drain_world(cx.local.control, &mut push);
+        // The board's events of this tick (an injection) before the fault they cause; after
+        // the run's last one, the cost accounting.
+        let control = cx.local.control;
+        while let Some(event) = control.hooks_mut().pop_event() {
+            let last = Hooks::ends_run(&event);
+            push(LogItem::Board(event));
+            if last {
+                push(LogItem::Costs(control.stats()));
+            }
+        }
         if let Some(fault) = result.fault {
             push(LogItem::Fault(fault));
         }
@@ -187,13 +176,13 @@ mod app {
         }
     }
 
+    // The host link's two tasks, declared by each program that serves it (an RTIC app
+    // declares its own tasks; their work is the library's): `duplicates` pairs them.
+
     /// The host link's receive interrupt: queue the bytes, wake the link task.
     #[task(binds = USART2, priority = 2, local = [serial_rx, rx_tx])]
     fn uart_rx(cx: uart_rx::Context) {
-        while let Some(byte) = cx.local.serial_rx.read() {
-            // A full queue loses the byte (see the module docs).
-            let _ = cx.local.rx_tx.enqueue(byte);
-        }
+        cx.local.serial_rx.receive_into(cx.local.rx_tx);
         NVIC::pend(board::pac::Interrupt::EXTI1);
     }
 
@@ -213,7 +202,7 @@ mod app {
 
     #[idle(local = [idle_mode])]
     fn idle(cx: idle::Context) -> ! {
-        crate::stack::repaint_after_init();
+        firmware::stack::repaint_after_init();
         loop {
             board::wait_for_interrupt(*cx.local.idle_mode);
         }

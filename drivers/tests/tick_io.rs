@@ -1,0 +1,179 @@
+//! The tick I/O's safety rules against embedded-hal-mock: a failed read keeps the last
+//! value and names the sensor; the bridge is off when the servo says so, and after a driver
+//! error.
+
+mod common;
+
+use drivers::tick_io::TickIo;
+use drivers::{AngleSensor, BridgeState, CurrentSensor, SensorError};
+use embedded_hal_mock::eh1::digital::{Mock as PinMock, State, Transaction as Pin};
+use embedded_hal_mock::eh1::pwm::{Mock as PwmMock, Transaction as Pwm};
+use embedded_hal_mock::eh1::MockError;
+use model::sensors::{ADC_MID, ENCODER_COUNTS};
+use model::servo::BridgeDemand;
+use model::supervisor::Sensor;
+use std::collections::VecDeque;
+
+/// A sensor that returns the scripted results in order (a timeout once they run out).
+struct Scripted(VecDeque<Result<u16, SensorError>>);
+
+impl Scripted {
+    fn new(results: &[Result<u16, SensorError>]) -> Self {
+        Self(results.iter().copied().collect())
+    }
+
+    fn next(&mut self) -> Result<u16, SensorError> {
+        self.0.pop_front().unwrap_or(Err(SensorError::Timeout))
+    }
+}
+
+impl AngleSensor for Scripted {
+    const FULL_SCALE: u16 = ENCODER_COUNTS;
+
+    fn read_counts(&mut self) -> Result<u16, SensorError> {
+        self.next()
+    }
+}
+
+impl CurrentSensor for Scripted {
+    fn read_raw(&mut self) -> Result<u16, SensorError> {
+        self.next()
+    }
+}
+
+type Io = TickIo<Scripted, Scripted, Scripted, PwmMock, PinMock, PinMock>;
+
+/// The timer's auto-reload of the mocked PWM.
+const MAX: u16 = 1000;
+
+/// Tick I/O whose bridge expects its `new` transactions, then the given ones.
+fn io(
+    sensors: [&[Result<u16, SensorError>]; 3],
+    pwm_after: &[Pwm],
+    dir_after: &[Pin],
+    en_after: &[Pin],
+) -> Io {
+    let bridge = common::bridge(pwm_after, dir_after, en_after);
+    let [link, pot, current] = sensors;
+    TickIo::new(
+        Scripted::new(link),
+        Scripted::new(pot),
+        Scripted::new(current),
+        bridge,
+    )
+}
+
+/// Checks that the bridge's mocks saw every expected transaction, and nothing more.
+fn done(io: &Io) {
+    common::done(&io.bridge);
+}
+
+const LOST: Result<u16, SensorError> = Err(SensorError::Bus);
+
+#[test]
+fn a_failed_read_keeps_the_last_value_and_names_the_sensor() {
+    let mut io = io(
+        [
+            &[Ok(100), LOST, Ok(300), Ok(400)],
+            &[Ok(500), Ok(510), LOST, Ok(530)],
+            &[Ok(2000), Ok(2100), Ok(2200), LOST],
+        ],
+        &[],
+        &[],
+        &[],
+    );
+    let first = io.read_inputs();
+    assert_eq!(
+        (first.link_encoder, first.gear_pot, first.current_adc),
+        (100, Some(500), 2000)
+    );
+    assert_eq!(first.read_error, None);
+
+    let second = io.read_inputs();
+    assert_eq!(
+        second.link_encoder, 100,
+        "the link keeps its last good value"
+    );
+    assert_eq!((second.gear_pot, second.current_adc), (Some(510), 2100));
+    assert_eq!(second.read_error, Some(Sensor::LinkEncoder));
+
+    let third = io.read_inputs();
+    assert_eq!(
+        third.gear_pot,
+        Some(510),
+        "the pot keeps its last good value"
+    );
+    assert_eq!((third.link_encoder, third.current_adc), (300, 2200));
+    assert_eq!(third.read_error, Some(Sensor::GearPot));
+
+    let fourth = io.read_inputs();
+    assert_eq!(
+        fourth.current_adc, 2200,
+        "the current keeps its last good value"
+    );
+    assert_eq!((fourth.link_encoder, fourth.gear_pot), (400, Some(530)));
+    assert_eq!(fourth.read_error, Some(Sensor::CurrentAdc));
+    done(&io);
+}
+
+#[test]
+fn before_any_good_read_the_servo_sees_the_actuator_at_rest() {
+    let mut io = io([&[LOST], &[LOST], &[LOST]], &[], &[], &[]);
+    let input = io.read_inputs();
+    assert_eq!(
+        (input.link_encoder, input.gear_pot, input.current_adc),
+        (0, None, ADC_MID)
+    );
+    // All three failed; the last one read is the one named.
+    assert_eq!(input.read_error, Some(Sensor::CurrentAdc));
+    done(&io);
+}
+
+#[test]
+fn the_bridge_is_off_when_the_servo_says_so() {
+    let mut io = io(
+        [&[], &[], &[]],
+        &[
+            // Drive(+450): PWM off before the direction flips, then the duty.
+            Pwm::set_duty_cycle(0),
+            Pwm::max_duty_cycle(MAX),
+            Pwm::set_duty_cycle(450),
+            // Off: enable low first, then the PWM off.
+            Pwm::set_duty_cycle(0),
+        ],
+        &[Pin::set(State::High)],
+        &[Pin::set(State::High), Pin::set(State::Low)],
+    );
+    io.drive(BridgeDemand::Drive(450));
+    assert_eq!(io.bridge.state(), BridgeState::Drive(450));
+    assert_eq!(io.applied_duty(), 450);
+    io.drive(BridgeDemand::Off);
+    assert_eq!(io.bridge.state(), BridgeState::Disabled);
+    assert_eq!(io.applied_duty(), 0);
+    // Already off: nothing more is written.
+    io.drive(BridgeDemand::Off);
+    assert_eq!(io.bridge_errors(), 0);
+    done(&io);
+}
+
+#[test]
+fn a_bridge_error_turns_the_bridge_off_and_is_counted() {
+    let failure = MockError::Io(std::io::ErrorKind::Other);
+    let mut io = io(
+        [&[], &[], &[]],
+        &[
+            Pwm::set_duty_cycle(0),
+            Pwm::max_duty_cycle(MAX),
+            Pwm::set_duty_cycle(300).with_error(failure),
+            // The error: disabled (enable low, PWM off).
+            Pwm::set_duty_cycle(0),
+        ],
+        &[Pin::set(State::High)],
+        &[Pin::set(State::Low)],
+    );
+    io.drive(BridgeDemand::Drive(300));
+    assert_eq!(io.bridge.state(), BridgeState::Disabled);
+    assert_eq!(io.bridge_errors(), 1);
+    assert_eq!(io.applied_duty(), 0);
+    done(&io);
+}

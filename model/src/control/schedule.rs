@@ -1,0 +1,361 @@
+//! The gain schedule: the per-tick constants derived from a validated configuration
+//! (design.md §11; the summary is in the [`crate::control`] docs).
+//!
+//! Everything here runs when the configuration changes (divisions, square roots and
+//! 128-bit arithmetic are fine); [`Schedule`] holds the per-tick constants as [`Gain`]s.
+
+use fixed::types::{I32F32, I64F64};
+
+use super::config::{Config, Limits, PidGains};
+use super::error::ControlError;
+use super::gain::{Gain, Q16_ONE};
+use super::validate::validate;
+use super::wide::{add, div, mul, sub, to_gain, to_q16, to_q32, wide};
+use crate::beam::Setting;
+use crate::design::Design;
+use crate::dynamics::natural_frequency;
+use crate::sensors::{ADC_COUNTS_PER_A, POT_COUNTS, POT_SPAN_DEG};
+use crate::units::{Angle, Frequency, Stiffness, Torque};
+
+/// Bandwidth schedule: ω_c = min(`BW_MAX`, ω_a / `BW_RATIO`), ω_a = √(k/J_link).
+pub const BW_RATIO: i32 = 5;
+/// Upper bound of the scheduled bandwidth, rad/s (encoder quantisation and duty headroom).
+pub const BW_MAX: i32 = 60;
+/// Derivative filter: time constant τ_f = 1/(`DERIV_FILTER_N`·ω_c).
+pub const DERIV_FILTER_N: i32 = 4;
+/// Fraction of the current-limited deceleration k_t·i_lim/J the braking governor counts
+/// on (the rest covers an assisting load and friction).
+pub const BRAKE_FRACTION: I32F32 = I32F32::lit("0.5");
+/// Torque width over which the free-play compensation switches sides, N·m (≈ the gear
+/// train's dry friction).
+pub const FREE_PLAY_SWITCH_NM: I32F32 = I32F32::lit("0.1");
+
+/// The per-tick constants of one configuration (all divisions done).
+///
+/// Signal formats: Q16 `i32` (see [`super::gain`]); duty in ‰, angles in rad, velocities
+/// in rad/s, accelerations in rad/s², currents in A, torques in N·m.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Schedule {
+    pub(crate) setting: Setting,
+    /// k, N·m/rad (I64F64 for reporting).
+    pub(crate) stiffness: Stiffness,
+    /// ω_c, rad/s.
+    pub(crate) bandwidth: Frequency,
+    /// The PID gains in use.
+    pub(crate) gains: PidGains,
+    pub(crate) kp: Gain,
+    /// Ki·dt, ‰/rad per tick (applied wide: Q32 integrator).
+    pub(crate) ki_dt: Gain,
+    /// 2·a_b, a_b = `BRAKE_FRACTION`·k_t·i_lim/J the deceleration the braking governor
+    /// counts on, rad/s² (applied wide).
+    pub(crate) two_a_brake: Gain,
+    /// Gear speed below which the braking governor stays off, rad/s Q16 (0.5 rad/s).
+    pub(crate) brake_min_w_q16: i32,
+    /// Integration band: |e| below max_duty/K_p (where the P term alone does not
+    /// saturate), rad Q16.
+    pub(crate) int_band_q16: i32,
+    /// Kp·dt, ‰ per rad/s of gear velocity per tick (gear hold inside the target count).
+    pub(crate) kp_dt: Gain,
+    /// Dead band of the gear velocity for the gear hold, rad/s Q16 (1.5 ADC counts).
+    pub(crate) w_deadband_q16: i32,
+    pub(crate) kd: Gain,
+    /// Derivative filter coefficient α = dt/(τ_f + dt), Q16.
+    pub(crate) alpha: Gain,
+    /// Feed-forward ‰ per rad/s of ṙ: (1000/V)·(k_e + R·b_v/k_t).
+    pub(crate) ff_vel: Gain,
+    /// Feed-forward ‰ per rad/s² of r̈: (1000/V)·R·J/k_t.
+    pub(crate) ff_acc: Gain,
+    /// Free-play/compliance feed-forward ‰ per rad of deflection change per tick:
+    /// (1000/V)·k_e·1000.
+    pub(crate) ff_defl: Gain,
+    /// J_link, N·m per rad/s² (reference torque on the link).
+    pub(crate) j_link: Gain,
+    /// 1/k, rad per N·m.
+    pub(crate) inv_k: Gain,
+    /// k, N·m per rad.
+    pub(crate) k: Gain,
+    /// φ_b, rad, Q16.
+    pub(crate) free_play_q16: i32,
+    /// φ_b / τ_switch, rad per N·m (free-play compensation slope).
+    pub(crate) fp_slope: Gain,
+    /// Load torque held by the integrator, N·m per ‰: (V/1000)·k_t/R.
+    pub(crate) torque_per_duty: Gain,
+    /// ‰ per A of current: (1000/V)·R.
+    pub(crate) duty_per_amp: Gain,
+    /// Back-EMF observer: ω_g = duty·w_per_duty − (adc − mid)·w_per_count (rad/s).
+    pub(crate) w_per_duty_q32: i64,
+    pub(crate) w_per_count_q32: i64,
+    /// ‰ per rad/s of gear velocity (back-EMF): (1000/V)·k_e.
+    pub(crate) duty_per_w: Gain,
+    /// Torque estimate: k_t (N·m/A), J_g/dt (N·m per rad/s of gear velocity change in
+    /// one tick), b_v (N·m per rad/s).
+    pub(crate) kt: Gain,
+    pub(crate) gear_inertia_per_dt: Gain,
+    pub(crate) bv: Gain,
+    /// Deflection weight of the torque blend w = σ_i²/(σ_i² + σ_d²), Q16 (0 … 1).
+    pub(crate) w_defl: Gain,
+    /// Current limit (A, Q16) and whether it comes from the beam capacity.
+    pub(crate) i_lim_q16: i32,
+    pub(crate) i_lim_from_beams: bool,
+    /// Coupling torque limit τ_lim = margin·τ_cap (N·m, Q16).
+    pub(crate) tau_lim_q16: i32,
+    /// Duty limit, ‰ Q16.
+    pub(crate) duty_lim_q16: i32,
+    /// Pot reading at gear angle 0 and encoder reading at link angle 0, counts.
+    pub(crate) pot_center: i32,
+    pub(crate) encoder_zero: u16,
+}
+
+/// Control ticks per second (the loop runs at 1 kHz).
+const TICKS_PER_S: i128 = 1000;
+
+/// The motor, gear train and link referred to the gearbox output, SI, I64F64.
+struct Drive {
+    /// H-bridge supply V_s, V.
+    supply: I64F64,
+    /// Armature resistance R, Ω.
+    resistance: I64F64,
+    /// Torque constant k_t, N·m/A.
+    kt: I64F64,
+    /// Back-EMF constant k_e, V·s/rad.
+    ke: I64F64,
+    /// Gear viscous friction b_v, N·m·s/rad.
+    bv: I64F64,
+    /// Gear inertia J_g and link inertia J_l, kg·m².
+    j_gear: I64F64,
+    j_link: I64F64,
+    /// J = J_g + J_l, kg·m².
+    j: I64F64,
+    /// Duty per volt, ‰/V: 1000/V_s.
+    duty_per_volt: I64F64,
+    /// Stall torque per volt c = k_t/R, N·m/V.
+    torque_per_volt: I64F64,
+    /// Damping b_m = k_t·k_e/R + b_v (back-EMF and viscous), N·m·s/rad.
+    damping: I64F64,
+}
+
+impl Drive {
+    fn new(cfg: &Config) -> Result<Drive, ControlError> {
+        let m = &cfg.motor;
+        let mega = I64F64::from_num(1_000_000);
+        let resistance = wide(m.resistance_ohm);
+        let kt = wide(m.torque_constant);
+        let ke = wide(m.back_emf);
+        let bv = wide(m.viscous);
+        let j_gear = div(wide(m.rotor_inertia.get()), mega)?; // kg·mm² → kg·m²
+        let j_link = div(wide(cfg.link_inertia.get()), mega)?;
+        let supply = wide(m.supply_v);
+        Ok(Drive {
+            supply,
+            resistance,
+            kt,
+            ke,
+            bv,
+            j_gear,
+            j_link,
+            j: add(j_gear, j_link)?,
+            duty_per_volt: div(I64F64::from_num(1000), supply)?,
+            torque_per_volt: div(kt, resistance)?,
+            damping: add(div(mul(kt, ke)?, resistance)?, bv)?,
+        })
+    }
+}
+
+/// ω_c: the override, or min(`BW_MAX`, ω_a/`BW_RATIO`), ω_a = √(k/J_link).
+fn bandwidth(cfg: &Config, stiffness: Stiffness) -> Result<Frequency, ControlError> {
+    let w_a = natural_frequency(stiffness, cfg.link_inertia)?;
+    Ok(match cfg.gains.bandwidth {
+        Some(bw) => bw,
+        None => {
+            let by_k = Frequency::from_bits(w_a.to_bits() / i64::from(BW_RATIO));
+            by_k.min(Frequency::from_int(BW_MAX))
+        }
+    })
+}
+
+/// PID gains by pole placement: (s + ω_c)³ on J·s³ + (b_m + c·K_d)·s² + c·K_p·s + c·K_i
+/// (K_p = 3ω²J/c, K_i = ω³J/c, K_d = max(0, 3ωJ − b_m)/c, times 1000/V_s for ‰).
+fn pole_placement(p: &Drive, w: I64F64) -> Result<PidGains, ControlError> {
+    let three = I64F64::from_num(3);
+    let to = |v: I64F64| I32F32::checked_from_num(v).ok_or(ControlError::GainOutOfRange);
+    let j_c = mul(div(p.j, p.torque_per_volt)?, p.duty_per_volt)?; // ‰ per (N·m/(kg·m²))
+    let kp = mul(mul(mul(three, w)?, w)?, j_c)?;
+    let kd_raw = sub(mul(mul(three, w)?, p.j)?, p.damping)?;
+    let kd = if kd_raw > I64F64::ZERO {
+        mul(div(kd_raw, p.torque_per_volt)?, p.duty_per_volt)?
+    } else {
+        I64F64::ZERO
+    };
+    let ki = mul(mul(mul(w, w)?, w)?, j_c)?;
+    Ok(PidGains {
+        kp: to(kp)?,
+        ki: to(ki)?,
+        kd: to(kd)?,
+    })
+}
+
+/// The coupling torque limit τ_lim = margin·τ_cap(L), N·m, the current limit, A, and
+/// whether the beams (not the motor) set it: the motor torque that keeps the beams below
+/// τ_lim even with the two-mass overshoot, |τ_s,peak| ≤ max(1, (3J_l − J_g)/(J_g + J_l))·τ_m.
+fn current_limit(
+    p: &Drive,
+    setting: &Setting,
+    lim: &Limits,
+) -> Result<(I64F64, I64F64, bool), ControlError> {
+    let tau_lim = mul(
+        wide(setting.torque_capacity().get()),
+        wide(lim.torque_margin.get()),
+    )?;
+    let overshoot = div(sub(mul(I64F64::from_num(3), p.j_link)?, p.j_gear)?, p.j)?.max(I64F64::ONE);
+    let i_beams = div(div(tau_lim, overshoot)?, p.kt)?;
+    let i_motor = wide(lim.max_current_a).min(div(wide(lim.max_motor_torque.get()), p.kt)?);
+    Ok(if i_beams < i_motor {
+        (tau_lim, i_beams, true)
+    } else {
+        (tau_lim, i_motor, false)
+    })
+}
+
+/// Weight of the deflection-based torque estimate, w = σ_i²/(σ_i² + σ_d²): one pot count
+/// q_pot = 300°/1024 of gear angle gives σ_d = k·q_pot/√12; σ_i is configured.
+fn deflection_weight(k: I64F64, current_sigma: Torque) -> Result<I64F64, ControlError> {
+    let q_pot = I64F64::PI * i128::from(POT_SPAN_DEG) / 180 / i128::from(POT_COUNTS);
+    let sd = mul(k, q_pot)?;
+    let sd2 = mul(sd, sd)? / 12;
+    let si = wide(current_sigma.get());
+    let si2 = mul(si, si)?;
+    div(si2, add(si2, sd2)?)
+}
+
+impl Schedule {
+    /// Validates `cfg` for `design` and computes the schedule.
+    ///
+    /// # Errors
+    /// See [`ControlError`].
+    pub fn new(design: &Design, cfg: &Config) -> Result<Schedule, ControlError> {
+        let setting = validate(design, cfg)?;
+        let stiffness = setting.stiffness();
+        let p = Drive::new(cfg)?;
+        let k = stiffness.get();
+        let (r, kt, ke, bv) = (p.resistance, p.kt, p.ke, p.bv);
+        let duty_per_volt = p.duty_per_volt;
+
+        let bandwidth = bandwidth(cfg, stiffness)?;
+        let w = wide(bandwidth.get());
+        let gains = match cfg.gains.gains {
+            Some(g) => g,
+            None => pole_placement(&p, w)?,
+        };
+        let ticks_per_s = I64F64::from_num(TICKS_PER_S);
+        let dt = I64F64::ONE / TICKS_PER_S;
+        let tau_f = div(I64F64::ONE, mul(I64F64::from_num(DERIV_FILTER_N), w)?)?;
+        let alpha = div(dt, add(tau_f, dt)?)?;
+
+        let lim = &cfg.limits;
+        let (tau_lim, i_lim, i_lim_from_beams) = current_limit(&p, &setting, lim)?;
+        let w_defl = deflection_weight(k, cfg.sensors.current_torque_sigma)?;
+        let free_play = wide(setting.free_play().get());
+        Ok(Schedule {
+            setting,
+            stiffness,
+            bandwidth,
+            gains,
+            kp: to_gain(wide(gains.kp))?,
+            ki_dt: to_gain(mul(wide(gains.ki), dt)?)?,
+            kp_dt: to_gain(mul(wide(gains.kp), dt)?)?,
+            two_a_brake: to_gain(div(
+                mul(
+                    mul(wide(BRAKE_FRACTION), kt)?,
+                    mul(i_lim, I64F64::from_num(2))?,
+                )?,
+                p.j,
+            )?)?,
+            brake_min_w_q16: Q16_ONE / 2,
+            int_band_q16: if gains.kp > I32F32::ZERO {
+                to_q16(div(I64F64::from_num(lim.max_duty), wide(gains.kp))?)?
+            } else {
+                i32::MAX
+            },
+            w_deadband_q16: to_q16(div(
+                mul(r, I64F64::from_num(3))?,
+                mul(ke, I64F64::from_num(2 * i32::from(ADC_COUNTS_PER_A)))?,
+            )?)?,
+            kd: to_gain(wide(gains.kd))?,
+            alpha: to_gain(alpha)?,
+            ff_vel: to_gain(mul(duty_per_volt, add(ke, div(mul(r, bv)?, kt)?)?)?)?,
+            ff_acc: to_gain(div(mul(mul(duty_per_volt, r)?, p.j)?, kt)?)?,
+            ff_defl: to_gain(mul(mul(duty_per_volt, ke)?, ticks_per_s)?)?,
+            j_link: to_gain(p.j_link)?,
+            inv_k: to_gain(div(I64F64::ONE, k)?)?,
+            k: to_gain(k)?,
+            free_play_q16: to_q16(free_play)?,
+            fp_slope: to_gain(div(free_play, wide(FREE_PLAY_SWITCH_NM))?)?,
+            torque_per_duty: to_gain(div(p.torque_per_volt, duty_per_volt)?)?,
+            duty_per_amp: to_gain(mul(duty_per_volt, r)?)?,
+            w_per_duty_q32: to_q32(div(div(p.supply, ticks_per_s)?, ke)?)?,
+            w_per_count_q32: to_q32(div(div(r, ke)?, I64F64::from_num(ADC_COUNTS_PER_A))?)?,
+            duty_per_w: to_gain(mul(duty_per_volt, ke)?)?,
+            kt: to_gain(kt)?,
+            gear_inertia_per_dt: to_gain(mul(p.j_gear, ticks_per_s)?)?,
+            bv: to_gain(bv)?,
+            w_defl: to_gain(w_defl)?,
+            i_lim_q16: to_q16(i_lim)?,
+            i_lim_from_beams,
+            tau_lim_q16: to_q16(tau_lim)?,
+            duty_lim_q16: i32::from(lim.max_duty) * Q16_ONE,
+            pot_center: i32::from(cfg.sensors.pot_center),
+            encoder_zero: cfg.sensors.encoder_zero,
+        })
+    }
+
+    /// The clutch setting in use.
+    #[must_use]
+    pub const fn setting(&self) -> &Setting {
+        &self.setting
+    }
+
+    /// The joint stiffness k.
+    #[must_use]
+    pub const fn stiffness(&self) -> Stiffness {
+        self.stiffness
+    }
+
+    /// The closed-loop bandwidth ω_c.
+    #[must_use]
+    pub const fn bandwidth(&self) -> Frequency {
+        self.bandwidth
+    }
+
+    /// The PID gains in use (scheduled or overridden).
+    #[must_use]
+    pub const fn gains(&self) -> PidGains {
+        self.gains
+    }
+
+    /// The coupling torque limit τ_lim = margin·τ_cap(L).
+    #[must_use]
+    pub fn torque_limit(&self) -> Torque {
+        Torque::from_bits(i64::from(self.tau_lim_q16) << 16)
+    }
+
+    /// The motor current limit, A, and whether the beams (not the motor) set it.
+    #[must_use]
+    pub fn current_limit(&self) -> (I32F32, bool) {
+        (
+            I32F32::from_bits(i64::from(self.i_lim_q16) << 16),
+            self.i_lim_from_beams,
+        )
+    }
+
+    /// Weight of the deflection-based torque estimate in the blend (0 … 1).
+    #[must_use]
+    pub fn deflection_weight(&self) -> I32F32 {
+        I32F32::from_bits(i64::from(self.w_defl.apply(Q16_ONE)) << 16)
+    }
+
+    /// The output free play φ_b the compensation uses.
+    #[must_use]
+    pub const fn free_play(&self) -> Angle {
+        self.setting.free_play()
+    }
+}
