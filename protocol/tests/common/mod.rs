@@ -285,6 +285,10 @@ pub fn reply() -> impl Strategy<Value = Reply> {
         status().prop_map(Reply::Status),
         any::<u32>().prop_map(|length_um| Reply::ClutchToSet { length_um }),
         sample().prop_map(Reply::Telemetry),
+        limits().prop_map(Reply::Limits),
+        (fault_code(), any::<i32>(), any::<u32>()).prop_map(|(code, value, tick)| {
+            Reply::FaultPersists(FaultRecord { code, value, tick })
+        }),
     ]
 }
 
