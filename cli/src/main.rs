@@ -24,6 +24,7 @@ mod error;
 mod explore;
 mod figures;
 mod format;
+mod output;
 mod plot;
 mod simulate;
 mod units;
@@ -106,6 +107,9 @@ fn main() -> ExitCode {
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
+            // Stopped by a signal: the handler kills the emulated board and exits with
+            // 130; the lost connection that woke this thread is not the error to report.
+            board::park_if_interrupted();
             let _ = writeln!(std::io::stderr(), "error: {e}");
             ExitCode::from(u8::try_from(e.code).unwrap_or(1))
         }

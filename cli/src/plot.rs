@@ -10,6 +10,34 @@ use plotters::prelude::SeriesLabelPosition;
 
 use crate::error::{CliError, CliResult};
 use crate::figures::plot::{register_font, Figure, Panel, Series, COLORS};
+use crate::output;
+
+/// Largest |value| plotted. Telemetry and simulation values are at most thousands (MPa
+/// stresses are written in Pa: 10⁹); beyond this the axis maths of the plotting library
+/// overflows (a span of ±1e308 panics, an infinite one never ends), so such a file is
+/// refused.
+pub const VALUE_MAX: f64 = 1e12;
+
+/// Checks every cell that will be plotted: finite (an empty or non-numeric cell, NaN, is
+/// left out of the line) and within ±[`VALUE_MAX`].
+fn check_values(t: &Table, path: &str, names: &[&str]) -> CliResult<()> {
+    for name in names {
+        let Some(i) = t.index(name) else { continue };
+        for (row, cells) in t.rows.iter().enumerate() {
+            let v = cells.get(i).copied().unwrap_or(f64::NAN);
+            if v.is_infinite() || v.abs() > VALUE_MAX {
+                return Err(CliError::usage(
+                    "plot",
+                    format!(
+                        "{path}: data row {}: {name} = {v:e} is outside ±{VALUE_MAX:e}",
+                        row + 1
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
 
 /// Arguments of `vsa plot`.
 #[derive(Args, Debug)]
@@ -25,12 +53,18 @@ pub struct PlotArgs {
     pub title: Option<String>,
 }
 
-/// One line of a panel from column `name`, if the table has it.
+/// One line of a panel from column `name`, if the table has it (rows where the time or
+/// the value is missing are left out).
 fn series(t: &Table, time: &[f64], name: &str, label: &str, color: usize) -> Option<Series> {
     let ys = t.column(name)?;
     Some(Series {
         label: Some(label.to_string()),
-        points: time.iter().copied().zip(ys).collect(),
+        points: time
+            .iter()
+            .copied()
+            .zip(ys)
+            .filter(|(x, y)| x.is_finite() && y.is_finite())
+            .collect(),
         color: COLORS[color % COLORS.len()],
         dashed: name == "reference_rad",
         marker: false,
@@ -78,6 +112,19 @@ pub fn run(a: &PlotArgs) -> CliResult<()> {
     if time.iter().all(|x| !x.is_finite()) {
         return Err(CliError::usage("plot", format!("{path}: no samples")));
     }
+    check_values(
+        &t,
+        &path,
+        &[
+            "t_s",
+            "link_angle_rad",
+            "gear_angle_rad",
+            "reference_rad",
+            "current_a",
+            "torque_nm",
+            "torque_estimate_nm",
+        ],
+    )?;
     // The reference last, dashed, on top of the measured angles.
     let angles: Vec<Series> = [
         ("link_angle_rad", "link", 1),
@@ -117,7 +164,12 @@ pub fn run(a: &PlotArgs) -> CliResult<()> {
         panels,
     };
     register_font().map_err(CliError::runtime)?;
-    fig.write_file(&a.out, true).map_err(CliError::runtime)?;
+    output::check_writable(&a.out).map_err(|e| CliError::usage("--out", e))?;
+    output::write_atomically(&a.out, |tmp| {
+        fig.write_file(tmp, true)
+            .map_err(|e| format!("cannot write {}: {e}", a.out.display()))
+    })
+    .map_err(CliError::runtime)?;
     eprintln!("wrote {} ({} samples)", a.out.display(), t.rows.len());
     Ok(())
 }

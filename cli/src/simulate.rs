@@ -21,10 +21,14 @@
 use std::fs::File;
 use std::io::{BufWriter, Write};
 
-use model::control::{ClutchSetting, Command, Config};
+use client::protocol::TARGET_MAX_URAD;
+use model::control::{ClutchSetting, Command, Config, ControlError};
 use model::{Angle, Design, Frequency, Inertia, Length, Stiffness};
 use plant::harness::{self, Metrics, Sample, Scenario};
 use plant::overrides::Overrides;
+
+use crate::board::LOAD_MAX_MNM;
+use crate::output;
 
 /// Arguments of `vsa simulate`.
 #[derive(clap::Args, Debug, Clone)]
@@ -114,7 +118,7 @@ fn split_unit(s: &str) -> Result<(f64, String), String> {
 /// Parses `s` as a quantity with one of `units` (suffix, factor to the base unit); an
 /// empty suffix takes the first unit.
 pub fn parse(s: &str, what: &str, units: &[(&str, f64)]) -> Result<f64, String> {
-    let (v, unit) = split_unit(s)?;
+    let (v, unit) = split_unit(s).map_err(|e| format!("{what} {e}"))?;
     if unit.is_empty() {
         return Ok(v * units.first().map_or(1.0, |u| u.1));
     }
@@ -154,12 +158,19 @@ fn micro(v: f64, what: &str) -> Result<i64, String> {
     if m.abs() < 9.0e15 {
         Ok(m as i64)
     } else {
-        Err(format!("{what} out of range"))
+        Err(format!("{what}: {v} is out of range"))
     }
 }
 
-fn angle(v: f64) -> Result<Angle, String> {
-    Angle::from_micro(micro(v, "angle")?).map_err(|e| format!("angle: {e}"))
+/// A commanded angle, within what the actuator's gear pot measures (the board's bound).
+fn angle(v: f64, what: &str) -> Result<Angle, String> {
+    let max = f64::from(TARGET_MAX_URAD) / 1e6;
+    if !(-max..=max).contains(&v) {
+        return Err(format!(
+            "{what}: {v} rad is outside ±{max} rad (what the gear pot measures)"
+        ));
+    }
+    Angle::from_micro(micro(v, what)?).map_err(|e| format!("{what}: {e}"))
 }
 
 fn pair<'a>(s: &'a str, what: &str) -> Result<(&'a str, &'a str), String> {
@@ -171,16 +182,18 @@ fn pair<'a>(s: &'a str, what: &str) -> Result<(&'a str, &'a str), String> {
 fn config(args: &SimulateArgs) -> Result<Config, String> {
     let mut cfg = Config::paper(Length::from_int(3));
     if let Some(k) = &args.stiffness {
-        let k = parse(k, "stiffness", STIFFNESS)?;
-        cfg.clutch = ClutchSetting::Stiffness(Stiffness::from_micro(micro(k, "stiffness")?));
+        let k = parse(k, "--stiffness", STIFFNESS)?;
+        cfg.clutch = ClutchSetting::Stiffness(Stiffness::from_micro(micro(k, "--stiffness")?));
     } else if let Some(l) = &args.clutch_length {
-        let l = parse(l, "clutch length", LENGTH_MM)?;
+        let l = parse(l, "--clutch-length", LENGTH_MM)?;
         cfg.clutch = ClutchSetting::Length(
-            Length::from_micro(micro(l, "clutch length")?).map_err(|e| e.to_string())?,
+            Length::from_micro(micro(l, "--clutch-length")?)
+                .map_err(|e| format!("--clutch-length: {e}"))?,
         );
     }
-    let j = parse(&args.inertia, "inertia", INERTIA)? * 1e6; // kg·mm²
-    cfg.link_inertia = Inertia::from_micro(micro(j, "inertia")?).map_err(|e| e.to_string())?;
+    let j = parse(&args.inertia, "--inertia", INERTIA)? * 1e6; // kg·mm²
+    cfg.link_inertia =
+        Inertia::from_micro(micro(j, "--inertia")?).map_err(|e| format!("--inertia: {e}"))?;
     Ok(cfg)
 }
 
@@ -188,32 +201,33 @@ fn command(args: &SimulateArgs) -> Result<(Command, Option<f64>), String> {
     if let Some(s) = &args.step {
         return Ok((
             Command::Step {
-                target: angle(parse(s, "step", ANGLE)?)?,
+                target: angle(parse(s, "--step", ANGLE)?, "--step")?,
             },
             None,
         ));
     }
     if let Some(s) = &args.move_to {
-        let (a, t) = pair(s, "move")?;
-        let ms = parse(t, "move duration", TIME_S)? * 1e3;
+        let (a, t) = pair(s, "--move")?;
+        let ms = parse(t, "--move duration", TIME_S)? * 1e3;
         if !(0.0..=u32::MAX as f64).contains(&ms.round()) {
-            return Err(format!("move duration `{t}` out of range"));
+            return Err(format!("--move duration `{t}` out of range"));
         }
         return Ok((
             Command::Move {
-                target: angle(parse(a, "move target", ANGLE)?)?,
+                target: angle(parse(a, "--move target", ANGLE)?, "--move")?,
                 duration_ms: ms.round() as u32,
             },
             None,
         ));
     }
     if let Some(s) = &args.sine {
-        let (a, f) = pair(s, "sine")?;
-        let w = parse(f, "sine frequency", FREQ_RAD_S)?;
-        let freq = Frequency::from_micro(micro(w, "sine frequency")?).map_err(|e| e.to_string())?;
+        let (a, f) = pair(s, "--sine")?;
+        let w = parse(f, "--sine frequency", FREQ_RAD_S)?;
+        let freq = Frequency::from_micro(micro(w, "--sine frequency")?)
+            .map_err(|e| format!("--sine frequency: {e}"))?;
         return Ok((
             Command::Sine {
-                amplitude: angle(parse(a, "sine amplitude", ANGLE)?)?,
+                amplitude: angle(parse(a, "--sine amplitude", ANGLE)?, "--sine")?,
                 frequency: freq,
             },
             Some(std::f64::consts::TAU / w),
@@ -222,12 +236,17 @@ fn command(args: &SimulateArgs) -> Result<(Command, Option<f64>), String> {
     Err("give one of --step, --move, --sine".into())
 }
 
-fn ticks(s: &str, what: &str) -> Result<u32, String> {
+/// A time in ticks (ms), within [`min_ms`, 3600 s].
+fn ticks(s: &str, what: &str, min_ms: u32) -> Result<u32, String> {
     let t = parse(s, what, TIME_S)?;
-    if !(0.0..=3600.0).contains(&t) {
-        return Err(format!("{what} `{s}` outside [0, 3600] s"));
+    let ms = (t * 1e3).round();
+    if !(f64::from(min_ms)..=3.6e6).contains(&ms) {
+        return Err(format!(
+            "{what} `{s}` outside [{}, 3600] s",
+            f64::from(min_ms) / 1e3
+        ));
     }
-    Ok((t * 1e3).round() as u32)
+    Ok(ms as u32)
 }
 
 /// The metrics as a JSON object (keys of the issue plus a few more; null for a figure that
@@ -317,38 +336,10 @@ pub fn csv_row(s: &Sample) -> String {
     )
 }
 
-/// Runs `vsa simulate`.
-///
-/// # Errors
-/// A bad argument, a configuration or command the controller rejects, or an I/O error
-/// writing the CSV.
-pub fn run(args: &SimulateArgs) -> Result<(), String> {
-    let cfg = config(args)?;
-    let (cmd, period_s) = command(args)?;
-    let load = parse(&args.load, "load", TORQUE)?;
-    let mut sc = Scenario::new(cfg, cmd);
-    sc.plant = overrides(args)?;
-    sc.design = Design::paper();
-    sc.load_nm = load as f32;
-    sc.settle_ticks = ticks(&args.settle, "--settle")?;
-    sc.run_ticks = ticks(&args.seconds, "--seconds")?;
-    sc.use_pot = !args.no_pot;
-    sc.steady_window_ticks = 500.min(sc.run_ticks);
-    // For a sine, the RMS error skips the first period (start transient).
-    sc.rms_from_ticks = period_s.map_or(0, |p| ((p * 1e3).round() as u32).min(sc.run_ticks));
-
-    let sched = model::control::Schedule::new(&sc.design, &cfg).map_err(|e| e.to_string())?;
-    let mut writer = match &args.csv {
-        Some(path) => {
-            let f = File::create(path).map_err(|e| format!("{}: {e}", path.display()))?;
-            let mut w = BufWriter::new(f);
-            writeln!(w, "{CSV_HEADER}").map_err(|e| format!("{}: {e}", path.display()))?;
-            Some(w)
-        }
-        None => None,
-    };
+/// Runs the scenario, each tick into `writer` if any (flushed at the end).
+fn run_with(sc: &Scenario, writer: &mut Option<BufWriter<File>>) -> Result<Metrics, String> {
     let mut io_err: Option<std::io::Error> = None;
-    let m = harness::run(&sc, |s| {
+    let m = harness::run(sc, |s| {
         if let (Some(w), None) = (writer.as_mut(), io_err.as_ref()) {
             if let Err(e) = writeln!(w, "{}", csv_row(s)) {
                 io_err = Some(e);
@@ -357,11 +348,76 @@ pub fn run(args: &SimulateArgs) -> Result<(), String> {
     })
     .map_err(|e| e.to_string())?;
     if let Some(e) = io_err {
-        return Err(format!("csv: {e}"));
+        return Err(format!("--csv: {e}"));
     }
-    if let Some(mut w) = writer {
-        w.flush().map_err(|e| format!("csv: {e}"))?;
+    if let Some(w) = writer {
+        w.flush().map_err(|e| format!("--csv: {e}"))?;
     }
+    Ok(m)
+}
+
+/// Runs `vsa simulate`.
+///
+/// # Errors
+/// A bad argument, a configuration or command the controller rejects, or an I/O error
+/// writing the CSV.
+pub fn run(args: &SimulateArgs) -> Result<(), String> {
+    let cfg = config(args)?;
+    let (cmd, period_s) = command(args)?;
+    let load = parse(&args.load, "--load", TORQUE)?;
+    let load_max = f64::from(LOAD_MAX_MNM) / 1e3;
+    if !(-load_max..=load_max).contains(&load) {
+        return Err(format!(
+            "--load: {load} N·m is outside ±{load_max} N·m (more than the actuator's beams \
+             and motor carry)"
+        ));
+    }
+    let mut sc = Scenario::new(cfg, cmd);
+    sc.plant = overrides(args)?;
+    sc.design = Design::paper();
+    sc.load_nm = load as f32;
+    sc.settle_ticks = ticks(&args.settle, "--settle", 0)?;
+    // At least one tick after the command: a run without one has no response to report.
+    sc.run_ticks = ticks(&args.seconds, "--seconds", 1)?;
+    sc.use_pot = !args.no_pot;
+    sc.steady_window_ticks = 500.min(sc.run_ticks);
+    // For a sine, the RMS error skips the first period (start transient).
+    sc.rms_from_ticks = period_s.map_or(0, |p| ((p * 1e3).round() as u32).min(sc.run_ticks));
+
+    let sched = model::control::Schedule::new(&sc.design, &cfg).map_err(|e| {
+        // Name the argument the configuration came from.
+        let arg = match e {
+            ControlError::InertiaOutOfRange => "--inertia",
+            ControlError::StiffnessOutOfRange => "--stiffness",
+            ControlError::ClutchOutOfRange => "--clutch-length",
+            _ => "the configuration",
+        };
+        format!("{arg}: {e}")
+    })?;
+    // The CSV goes to a temporary file, renamed over `--csv` only if the run succeeds.
+    let tmp = args.csv.as_deref().map(output::temporary_path);
+    let mut writer = match (&args.csv, &tmp) {
+        (Some(path), Some(tmp)) => {
+            let f = File::create(tmp)
+                .map_err(|e| format!("--csv: cannot write {}: {e}", path.display()))?;
+            let mut w = BufWriter::new(f);
+            writeln!(w, "{CSV_HEADER}").map_err(|e| format!("--csv: {}: {e}", path.display()))?;
+            Some(w)
+        }
+        _ => None,
+    };
+    let result = run_with(&sc, &mut writer);
+    drop(writer);
+    if let (Some(path), Some(tmp)) = (&args.csv, &tmp) {
+        match &result {
+            Ok(_) => std::fs::rename(tmp, path)
+                .map_err(|e| format!("--csv: cannot write {}: {e}", path.display()))?,
+            Err(_) => {
+                let _ = std::fs::remove_file(tmp);
+            }
+        }
+    }
+    let m = result?;
 
     if args.json {
         println!("{}", metrics_json(&m, period_s.is_some()));

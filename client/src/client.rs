@@ -173,7 +173,8 @@ impl Client {
     /// (replies, [`Client::wait`], [`Client::record`], …) sends a [`Request::Heartbeat`]
     /// whenever [`HEARTBEAT_INTERVAL`] (20 ms) or more have passed since the last one. The
     /// board arms its 100 ms command timeout at the first heartbeat: once on, keep the
-    /// client waiting (not idle) or the board latches `command-timeout`.
+    /// client waiting (not idle) or the board latches `command-timeout`; end the session
+    /// with [`Client::disarm_heartbeat`] (turning the mode off here sends nothing).
     pub fn set_heartbeat(&mut self, on: bool) {
         self.heartbeat = on;
     }
@@ -507,9 +508,35 @@ impl Client {
     /// [`Request::ClearFault`]: clears the latched faults (the motor stays off).
     ///
     /// # Errors
-    /// As [`Client::ping`].
+    /// As [`Client::ping`]; [`Error::FaultPersists`] when the board cleared nothing because
+    /// the condition of a fault still holds (with the limits in force, if the board gave
+    /// them).
     pub fn clear_fault(&mut self) -> Result<()> {
-        self.request_ok(Request::ClearFault)
+        match self.request(Request::ClearFault)? {
+            Reply::Ok => Ok(()),
+            Reply::FaultPersists(record) => Err(Error::FaultPersists {
+                record,
+                limits: self.limits().ok(),
+            }),
+            reply => Err(Error::UnexpectedReply {
+                request: "clear-fault",
+                reply,
+            }),
+        }
+    }
+
+    /// [`Request::GetLimits`]: the live limits and the position window in force.
+    ///
+    /// # Errors
+    /// As [`Client::ping`].
+    pub fn limits(&mut self) -> Result<Limits> {
+        match self.request(Request::GetLimits)? {
+            Reply::Limits(l) => Ok(l),
+            reply => Err(Error::UnexpectedReply {
+                request: "get-limits",
+                reply,
+            }),
+        }
     }
 
     /// [`Request::SetClutchLength`]: the clutch sits at `length_um` µm (1 000–8 000).
@@ -615,5 +642,15 @@ impl Client {
     /// As [`Client::ping`].
     pub fn heartbeat(&mut self) -> Result<()> {
         self.request_ok(Request::Heartbeat)
+    }
+
+    /// Ends a heartbeat session: stops the heartbeat mode and sends
+    /// [`Request::DisarmHeartbeat`], so the board's command timeout is off again.
+    ///
+    /// # Errors
+    /// As [`Client::ping`].
+    pub fn disarm_heartbeat(&mut self) -> Result<()> {
+        self.heartbeat = false;
+        self.request_ok(Request::DisarmHeartbeat)
     }
 }

@@ -5,7 +5,10 @@
 //!
 //! It accepts one connection at a time, any number in turn (each `vsa --tcp` invocation is
 //! one); the device state persists across connections. It is not the firmware: the
-//! "actuator" follows the reference at once, and only the command timeout is supervised.
+//! "actuator" follows the reference at once, and only the command timeout and the
+//! position window are supervised (with the firmware's rules: a target outside the window
+//! is refused, a clear while the link is outside it clears nothing, any well-formed
+//! request restarts an armed timeout, a latched timeout disarms it).
 
 use std::collections::HashSet;
 use std::io::{self, Read, Write};
@@ -44,6 +47,8 @@ pub struct Behaviour {
     pub ignore: HashSet<&'static str>,
     /// Delay before each reply.
     pub reply_delay: Duration,
+    /// Added to the board's tick (e.g. to record across the u32 tick wrap).
+    pub tick_offset: u32,
 }
 
 /// The mock device behind the handler.
@@ -118,20 +123,52 @@ impl MockDevice {
         }
     }
 
-    /// Latches the command timeout if heartbeats were armed and none came in time.
+    fn within_window(&self, urad: i32) -> bool {
+        (self.limits.position_min_urad..=self.limits.position_max_urad).contains(&urad)
+    }
+
+    /// A motion to `target_urad`: refused outside the position window, as the firmware.
+    fn motion_to(&mut self, target_urad: i32) -> Result<(), ErrorCode> {
+        if !self.within_window(target_urad) {
+            return Err(ErrorCode::OutOfRange);
+        }
+        self.motion_allowed()?;
+        self.reference_urad = target_urad;
+        Ok(())
+    }
+
+    fn latch(&mut self, code: FaultCode, value: i32) {
+        if !self.faults.contains(code) {
+            self.faults = self.faults.with(code);
+            self.first_fault.get_or_insert(FaultRecord {
+                code,
+                value,
+                tick: self.tick,
+            });
+            self.state = State::Faulted;
+        }
+    }
+
+    /// The link angle (the fake follows the reference), µrad.
+    fn link_urad(&self) -> i32 {
+        self.reference_urad.saturating_sub(120)
+    }
+
+    /// Latches the command timeout if heartbeats were armed and none came in time (and
+    /// disarms it), and the position limit while the link is outside the window.
     fn supervise(&mut self) {
         if let Some(t) = self.last_heartbeat {
-            let since = self.tick.saturating_sub(t);
-            if since > self.command_timeout_ms && !self.faults.contains(FaultCode::CommandTimeout) {
-                self.faults = self.faults.with(FaultCode::CommandTimeout);
-                self.first_fault.get_or_insert(FaultRecord {
-                    code: FaultCode::CommandTimeout,
-                    value: i32::try_from(since).unwrap_or(i32::MAX),
-                    tick: self.tick,
-                });
-                self.state = State::Faulted;
+            let since = self.tick.wrapping_sub(t);
+            if since > self.command_timeout_ms {
+                self.latch(
+                    FaultCode::CommandTimeout,
+                    i32::try_from(since).unwrap_or(i32::MAX),
+                );
                 self.last_heartbeat = None;
             }
+        }
+        if !self.within_window(self.link_urad()) {
+            self.latch(FaultCode::PositionLimit, self.link_urad());
         }
     }
 
@@ -139,7 +176,7 @@ impl MockDevice {
         TelemetrySample {
             tick,
             reference_urad: self.reference_urad,
-            link_angle_urad: self.reference_urad.saturating_sub(120),
+            link_angle_urad: self.link_urad(),
             gear_angle_urad: self.reference_urad.saturating_add(3_400),
             current_ma: if self.state == State::Enabled { 212 } else { 0 },
             torque_unm: -41_230,
@@ -198,15 +235,11 @@ impl Device for MockDevice {
     }
 
     fn command_move(&mut self, target_urad: i32, _duration_ms: u32) -> Result<(), ErrorCode> {
-        self.motion_allowed()?;
-        self.reference_urad = target_urad;
-        Ok(())
+        self.motion_to(target_urad)
     }
 
     fn command_step(&mut self, target_urad: i32) -> Result<(), ErrorCode> {
-        self.motion_allowed()?;
-        self.reference_urad = target_urad;
-        Ok(())
+        self.motion_to(target_urad)
     }
 
     fn command_sine(&mut self, _amplitude: u32, _frequency: u32) -> Result<(), ErrorCode> {
@@ -235,6 +268,31 @@ impl Device for MockDevice {
     fn heartbeat(&mut self) {
         self.heartbeats = self.heartbeats.saturating_add(1);
         self.last_heartbeat = Some(self.tick);
+    }
+
+    fn disarm_heartbeat(&mut self) {
+        self.last_heartbeat = None;
+    }
+
+    fn link_activity(&mut self) {
+        if self.last_heartbeat.is_some() {
+            self.last_heartbeat = Some(self.tick);
+        }
+    }
+
+    fn limits(&mut self) -> Limits {
+        self.limits
+    }
+
+    fn persisting_fault(&mut self) -> Option<FaultRecord> {
+        let link = self.link_urad();
+        (self.faults.contains(FaultCode::PositionLimit) && !self.within_window(link)).then_some(
+            FaultRecord {
+                code: FaultCode::PositionLimit,
+                value: link,
+                tick: self.tick,
+            },
+        )
     }
 
     fn status(&mut self) -> Status {
@@ -400,7 +458,7 @@ fn connection(
         let mut out = Vec::new();
         {
             let mut sh = lock(shared);
-            sh.device.tick = now_tick(start);
+            sh.device.tick = now_tick(start).wrapping_add(sh.behaviour.tick_offset);
             sh.device.supervise();
             for &b in buf.get(..n).unwrap_or_default() {
                 let frame = match decoder.feed(b) {
@@ -446,6 +504,7 @@ fn connection(
 
             // Telemetry due up to now.
             let rate = sh.device.telemetry_rate_hz;
+            let offset = sh.behaviour.tick_offset;
             let tick = now_tick(start);
             if telemetry.as_ref().map(|s| s.rate) != Some(rate) {
                 telemetry = (rate > 0).then_some(Stream {
@@ -471,7 +530,8 @@ fn connection(
                         continue;
                     }
                     let corrupt = corrupt_every > 0 && s.n % u64::from(corrupt_every) == 0;
-                    if let Ok(f) = telemetry_frame(s.counter, &sh.device.sample(due)) {
+                    let sample = sh.device.sample(due.wrapping_add(offset));
+                    if let Ok(f) = telemetry_frame(s.counter, &sample) {
                         let at = out.len();
                         out.extend_from_slice(&f);
                         if corrupt {

@@ -28,7 +28,7 @@
 //! println!("{} samples, {} missing", rec.samples.len(), rec.missing_samples);
 //! # Ok::<(), client::Error>(())
 //! ```
-#![forbid(unsafe_code)]
+#![deny(unsafe_code)]
 #![deny(missing_docs)]
 
 mod client;
@@ -42,7 +42,10 @@ mod transport;
 use std::time::Duration;
 
 pub use client::{Client, Stats, TelemetryFrame, DEFAULT_TELEMETRY_CAPACITY, DEFAULT_TIMEOUT};
-pub use names::{describe_fault, fault_name, fault_value_unit, request_name, state_name};
+pub use names::{
+    describe_fault, fault_name, fault_value_unit, persisting_advice, request_name, state_name,
+    urad_text,
+};
 pub use protocol;
 pub use protocol::{
     ErrorCode, FaultCode, FaultRecord, FaultSet, Gains, LimitFlags, Limits, Reply, Request, State,
@@ -92,6 +95,14 @@ pub enum Error {
         request: &'static str,
         /// Why.
         code: ErrorCode,
+    },
+    /// The board cleared nothing: the condition of a latched fault still holds.
+    #[error("the board cleared nothing: {}", crate::names::persisting_advice(record, limits.as_ref()))]
+    FaultPersists {
+        /// The fault, its value now and the tick it was last seen at.
+        record: FaultRecord,
+        /// The limits in force, if the board gave them.
+        limits: Option<Limits>,
     },
     /// The board answered with a reply of the wrong kind.
     #[error("unexpected reply to {request}: {reply:?}")]

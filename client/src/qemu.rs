@@ -14,15 +14,27 @@
 //! (`sleep=on,align=on`: virtual time is the instruction count, 8 ns each, and QEMU sleeps
 //! whenever the guest runs ahead of real time, so the board keeps time with the host's
 //! heartbeats.) QEMU connects to PORT as a TCP client: [`QemuBoard::spawn`] binds a
-//! listener on 127.0.0.1 first, starts QEMU, and accepts its connection. QEMU's stdout
-//! carries the firmware's defmt log (binary defmt frames): a thread drains it into a
-//! [`LogSink`]. The UART drops what arrives before the firmware enables it, so
-//! [`QemuBoard::start`] pings every 50 ms until the firmware answers. Dropping the
-//! [`QemuBoard`] kills QEMU.
+//! listener on 127.0.0.1 first, starts QEMU, and accepts its connection. [`QemuCommand`]
+//! is the one definition of the command line, also used by the xtask.
+//!
+//! The firmware's defmt log (binary defmt frames) comes on QEMU's stdout: the firmware
+//! writes it to the semihosting handle `:tt`, which QEMU 7.2 writes to its own stdout one
+//! byte at a time, whatever `-semihosting-config chardev=` says (measured: such a chardev
+//! stays empty). QEMU's own message on stdout, "Warning: The guest is now late by X to Y
+//! seconds" (one `write` of the whole line, when the host is too busy to keep the board in
+//! real time under `align=on`), lands in the middle of a binary frame. [`MessageFilter`]
+//! takes such lines out of the byte stream, which restores the frame exactly; a thread
+//! passes the rest to a [`LogSink`] as it comes and keeps the messages with QEMU's stderr
+//! for error messages.
+//!
+//! QEMU dies with this process: it is started with the parent-death signal SIGKILL
+//! (`prctl(PR_SET_PDEATHSIG)`), so not even a SIGKILL of `vsa` leaves it running. The UART
+//! drops what arrives before the firmware enables it, so [`QemuBoard::start`] pings every
+//! 50 ms until the firmware answers. Dropping the [`QemuBoard`] kills QEMU.
 
 use std::fmt;
 use std::io::{Read, Write};
-use std::net::TcpListener;
+use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::str::FromStr;
@@ -164,11 +176,223 @@ pub fn build_firmware(root: &Path, board: Board) -> Result<PathBuf> {
     }
 }
 
-/// Where the firmware's defmt log bytes (QEMU's stdout) go.
+/// The command line of an emulated board: the one definition for `vsa --qemu`, `vsa
+/// serve-qemu`, `cargo xtask e2e` and the xtask's scenario runs.
+#[derive(Clone, Debug)]
+pub struct QemuCommand {
+    /// The QEMU binary.
+    pub qemu: PathBuf,
+    /// The QEMU machine ([`Board::machine`]).
+    pub machine: String,
+    /// The firmware ELF.
+    pub elf: PathBuf,
+    /// The firmware's command line (semihosting), its name first; no commas, none empty.
+    pub argv: Vec<String>,
+    /// The `-serial` devices, in order (USART1, USART2, …).
+    pub serials: Vec<String>,
+    /// The `-icount` value.
+    pub icount: String,
+}
+
+impl QemuCommand {
+    /// The `-semihosting-config` value.
+    ///
+    /// # Errors
+    /// [`Error::Qemu`] for an argument that is empty or contains ','.
+    pub fn semihosting(&self) -> Result<String> {
+        let mut s = String::from("enable=on,target=native");
+        for a in &self.argv {
+            if a.contains(',') || a.is_empty() {
+                return Err(Error::Qemu(format!(
+                    "firmware argument {a:?} may not be empty or contain ','"
+                )));
+            }
+            s.push_str(",arg=");
+            s.push_str(a);
+        }
+        Ok(s)
+    }
+
+    /// The process to spawn: stdin closed, stdout (the defmt log, see [`MessageFilter`])
+    /// and stderr piped, and SIGKILL to QEMU when the thread that spawns it (the caller's)
+    /// ends.
+    ///
+    /// # Errors
+    /// As [`QemuCommand::semihosting`].
+    pub fn command(&self) -> Result<Command> {
+        let mut cmd = Command::new(&self.qemu);
+        cmd.args(["-machine", &self.machine])
+            .args(["-display", "none", "-monitor", "none"]);
+        for s in &self.serials {
+            cmd.arg("-serial").arg(s);
+        }
+        cmd.arg("-semihosting-config")
+            .arg(self.semihosting()?)
+            .arg("-icount")
+            .arg(&self.icount)
+            .arg("-kernel")
+            .arg(&self.elf)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped());
+        die_with_parent(&mut cmd);
+        Ok(cmd)
+    }
+}
+
+/// Makes the child get SIGKILL when its parent dies (Linux `PR_SET_PDEATHSIG`), and exit
+/// at once if the parent is already gone. Its own process group: a Ctrl-C at the terminal
+/// reaches only the parent, which kills it in order (and reports no lost connection).
+#[cfg(target_os = "linux")]
+#[allow(unsafe_code)]
+fn die_with_parent(cmd: &mut Command) {
+    use std::os::unix::process::CommandExt;
+    cmd.process_group(0);
+    let parent = std::process::id();
+    // SAFETY: between fork and exec only async-signal-safe calls are made (prctl,
+    // getppid, _exit), with no allocation and no lock.
+    unsafe {
+        cmd.pre_exec(move || {
+            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL, 0, 0, 0) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            if u32::try_from(libc::getppid()).ok() != Some(parent) {
+                libc::_exit(1);
+            }
+            Ok(())
+        });
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn die_with_parent(_cmd: &mut Command) {}
+
+/// A listener on a free port of 127.0.0.1 for QEMU to connect to.
+///
+/// # Errors
+/// [`Error::Qemu`] if binding fails.
+pub fn listen() -> Result<(TcpListener, u16)> {
+    let err = |e: std::io::Error| Error::Qemu(format!("binding 127.0.0.1:0: {e}"));
+    let l = TcpListener::bind("127.0.0.1:0").map_err(err)?;
+    let port = l.local_addr().map_err(err)?.port();
+    l.set_nonblocking(true).map_err(err)?;
+    Ok((l, port))
+}
+
+/// Accepts QEMU's connection to `listener` (what: for messages), giving up when `child`
+/// exits (with its status and `stderr()`) or after `timeout`.
+///
+/// # Errors
+/// [`Error::Qemu`].
+pub fn accept_from(
+    listener: &TcpListener,
+    what: &str,
+    child: &mut Child,
+    stderr: impl Fn() -> String,
+    timeout: Duration,
+) -> Result<TcpStream> {
+    let start = Instant::now();
+    loop {
+        match listener.accept() {
+            Ok((s, _)) => {
+                s.set_nonblocking(false)
+                    .map_err(|e| Error::Qemu(format!("{what}: {e}")))?;
+                return Ok(s);
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                if let Ok(Some(status)) = child.try_wait() {
+                    let text = stderr();
+                    return Err(Error::Qemu(format!(
+                        "QEMU exited ({status}) before connecting {what}{}",
+                        if text.is_empty() {
+                            String::new()
+                        } else {
+                            format!(": {text}")
+                        }
+                    )));
+                }
+                if start.elapsed() > timeout {
+                    return Err(Error::Qemu(format!(
+                        "QEMU did not connect {what} within {} s",
+                        timeout.as_secs()
+                    )));
+                }
+                std::thread::sleep(Duration::from_millis(5));
+            }
+            Err(e) => return Err(Error::Qemu(format!("accepting QEMU's {what}: {e}"))),
+        }
+    }
+}
+
+/// What QEMU itself writes on its stdout, in the middle of the firmware's log: each such
+/// line starts with one of these and ends with a newline.
+pub const QEMU_MESSAGES: [&[u8]; 1] = [b"Warning: The guest is now late by "];
+
+/// Longest QEMU message line kept apart, bytes (the warning is 53).
+const MESSAGE_MAX: usize = 120;
+
+/// Splits QEMU's stdout into the firmware's log bytes and QEMU's own message lines
+/// ([`QEMU_MESSAGES`]), across any chunking of the stream.
+#[derive(Clone, Debug, Default)]
+pub struct MessageFilter {
+    /// Bytes that may be the start of a message (a prefix of one).
+    pending: Vec<u8>,
+    /// Inside a message (its prefix matched) until the newline.
+    in_message: bool,
+}
+
+impl MessageFilter {
+    /// A filter at the start of a stream.
+    #[must_use]
+    pub fn new() -> MessageFilter {
+        MessageFilter::default()
+    }
+
+    /// Feeds `bytes`: the log bytes go to `log`, whole message lines to `messages`.
+    pub fn feed(&mut self, bytes: &[u8], log: &mut Vec<u8>, messages: &mut Vec<u8>) {
+        for &b in bytes {
+            self.pending.push(b);
+            if self.in_message {
+                if b == b'\n' || self.pending.len() >= MESSAGE_MAX {
+                    messages.append(&mut self.pending);
+                    self.in_message = false;
+                }
+                continue;
+            }
+            loop {
+                let p = self.pending.as_slice();
+                if p.is_empty() {
+                    break;
+                }
+                if QEMU_MESSAGES.iter().any(|m| m.len() == p.len() && *m == p) {
+                    self.in_message = true;
+                    break;
+                }
+                if QEMU_MESSAGES.iter().any(|m| m.starts_with(p)) {
+                    break;
+                }
+                // Not a message here: the first byte is log, the rest may start one.
+                log.push(self.pending.remove(0));
+            }
+        }
+    }
+
+    /// The end of the stream: what was held back as a possible message start is log.
+    pub fn finish(&mut self, log: &mut Vec<u8>, messages: &mut Vec<u8>) {
+        if self.in_message {
+            messages.append(&mut self.pending);
+        } else {
+            log.append(&mut self.pending);
+        }
+        self.in_message = false;
+    }
+}
+
+/// Where the firmware's defmt log bytes go.
 pub enum LogSink {
     /// Dropped.
     Discard,
-    /// Written (and flushed when QEMU's stdout closes).
+    /// Written, and flushed after every chunk (a log file follows the run).
     Writer(Box<dyn Write + Send>),
     /// Sent as chunks; a closed receiver stops nothing (the bytes are then dropped).
     Channel(Sender<Vec<u8>>),
@@ -189,7 +413,8 @@ impl LogSink {
         match self {
             LogSink::Discard => {}
             LogSink::Writer(w) => {
-                if w.write_all(bytes).is_err() {
+                // Flushed as it comes: the file follows the run.
+                if w.write_all(bytes).and_then(|()| w.flush()).is_err() {
                     *self = LogSink::Discard;
                 }
             }
@@ -249,19 +474,25 @@ impl QemuOptions {
         }
     }
 
-    /// The `-semihosting-config` value.
-    fn semihosting(&self) -> Result<String> {
-        let mut s = String::from("enable=on,target=native,arg=vsa-firmware,arg=--serve");
-        for a in &self.firmware_args {
-            if a.contains(',') || a.is_empty() {
-                return Err(Error::Qemu(format!(
-                    "firmware argument {a:?} may not be empty or contain ','"
-                )));
-            }
-            s.push_str(",arg=");
-            s.push_str(a);
+    /// The command line, with the command UART on TCP port `serial_port` of 127.0.0.1.
+    #[must_use]
+    pub fn qemu_command(&self, serial_port: u16) -> QemuCommand {
+        let mut argv = vec!["vsa-firmware".to_owned(), "--serve".to_owned()];
+        argv.extend(self.firmware_args.iter().cloned());
+        let mut serials = vec!["null".to_owned(); self.serial_index];
+        serials.push(format!("tcp:127.0.0.1:{serial_port}"));
+        QemuCommand {
+            qemu: self.qemu.clone(),
+            machine: self.board.machine().to_owned(),
+            elf: self.elf.clone(),
+            argv,
+            serials,
+            icount: format!(
+                "shift={},sleep=on{}",
+                self.icount_shift,
+                if self.align { ",align=on" } else { "" }
+            ),
         }
-        Ok(s)
     }
 }
 
@@ -339,69 +570,72 @@ impl QemuBoard {
                 opts.elf.display()
             )));
         }
-        let semihosting = opts.semihosting()?;
         let err = |what: &str, e: std::io::Error| Error::Qemu(format!("{what}: {e}"));
-        let listener =
-            TcpListener::bind("127.0.0.1:0").map_err(|e| err("binding 127.0.0.1:0", e))?;
-        let port = listener
-            .local_addr()
-            .map_err(|e| err("listener address", e))?
-            .port();
-        let mut cmd = Command::new(&opts.qemu);
-        cmd.args(["-machine", opts.board.machine()])
-            .args(["-display", "none", "-monitor", "none"]);
-        for _ in 0..opts.serial_index {
-            cmd.args(["-serial", "null"]);
-        }
-        let mut child = cmd
-            .arg("-serial")
-            .arg(format!("tcp:127.0.0.1:{port}"))
-            .arg("-semihosting-config")
-            .arg(&semihosting)
-            .arg("-icount")
-            .arg(format!(
-                "shift={},sleep=on{}",
-                opts.icount_shift,
-                if opts.align { ",align=on" } else { "" }
-            ))
-            .arg("-kernel")
-            .arg(&opts.elf)
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
+        let (serial_listener, serial_port) = listen()?;
+        let mut child = opts
+            .qemu_command(serial_port)
+            .command()?
             .spawn()
             .map_err(|e| err(&format!("starting {}", opts.qemu.display()), e))?;
 
-        let stdout = child.stdout.take();
-        let log_thread = stdout.map(|mut out| {
+        // QEMU's own messages (stderr, and the lines taken out of stdout), kept for error
+        // messages.
+        let stderr = Arc::new(Mutex::new(Vec::new()));
+        let keep = {
+            let stderr = Arc::clone(&stderr);
+            move |b: &[u8]| {
+                if let Ok(mut k) = stderr.lock() {
+                    if k.len() < STDERR_KEEP {
+                        k.extend_from_slice(b);
+                    }
+                }
+            }
+        };
+        let log_thread = child.stdout.take().map(|mut out| {
+            let keep = keep.clone();
             std::thread::spawn(move || {
+                let mut filter = MessageFilter::new();
+                let (mut bytes, mut messages) = (Vec::new(), Vec::new());
                 let mut buf = [0u8; 4096];
-                while let Ok(n) = out.read(&mut buf) {
+                loop {
+                    let n = out.read(&mut buf).unwrap_or(0);
                     match buf.get(..n) {
-                        Some(b) if n > 0 => log.take(b),
-                        _ => break,
+                        Some(b) if n > 0 => filter.feed(b, &mut bytes, &mut messages),
+                        _ => filter.finish(&mut bytes, &mut messages),
+                    }
+                    if !bytes.is_empty() {
+                        log.take(&bytes);
+                        bytes.clear();
+                    }
+                    keep(&messages);
+                    messages.clear();
+                    if n == 0 {
+                        break;
                     }
                 }
                 log.finish();
             })
         });
-        let stderr = Arc::new(Mutex::new(Vec::new()));
-        let stderr_thread = child.stderr.take().map(|mut err_pipe| {
-            let keep = Arc::clone(&stderr);
+        let stderr_thread = child.stderr.take().map(|mut pipe| {
             std::thread::spawn(move || {
                 let mut buf = [0u8; 1024];
-                while let Ok(n) = err_pipe.read(&mut buf) {
+                while let Ok(n) = pipe.read(&mut buf) {
                     let Some(b) = buf.get(..n).filter(|_| n > 0) else {
                         break;
                     };
-                    if let Ok(mut k) = keep.lock() {
-                        if k.len() < STDERR_KEEP {
-                            k.extend_from_slice(b);
-                        }
-                    }
+                    keep(b);
                 }
             })
         });
+        let text = {
+            let stderr = Arc::clone(&stderr);
+            move || {
+                stderr
+                    .lock()
+                    .map(|b| String::from_utf8_lossy(&b).trim().to_string())
+                    .unwrap_or_default()
+            }
+        };
         let mut qemu = QemuBoard {
             child,
             board: opts.board,
@@ -409,37 +643,13 @@ impl QemuBoard {
             stderr_thread,
             stderr,
         };
-
-        listener
-            .set_nonblocking(true)
-            .map_err(|e| err("listener", e))?;
-        let start = Instant::now();
-        let stream = loop {
-            match listener.accept() {
-                Ok((s, _)) => break s,
-                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
-                    if let Some(status) = qemu.try_wait() {
-                        let stderr = qemu.stderr_text();
-                        return Err(Error::Qemu(format!(
-                            "QEMU exited ({status}) before connecting to the serial port{}",
-                            if stderr.is_empty() {
-                                String::new()
-                            } else {
-                                format!(": {stderr}")
-                            }
-                        )));
-                    }
-                    if start.elapsed() > opts.connect_timeout {
-                        return Err(Error::Qemu(format!(
-                            "QEMU did not connect to 127.0.0.1:{port} within {} s",
-                            opts.connect_timeout.as_secs()
-                        )));
-                    }
-                    std::thread::sleep(Duration::from_millis(5));
-                }
-                Err(e) => return Err(err("accepting QEMU's connection", e)),
-            }
-        };
+        let stream = accept_from(
+            &serial_listener,
+            "to the serial port",
+            &mut qemu.child,
+            text,
+            opts.connect_timeout,
+        )?;
         let transport = TcpTransport::from_stream(stream).map_err(|e| err("QEMU socket", e))?;
         Ok((qemu, transport))
     }
@@ -461,7 +671,8 @@ impl QemuBoard {
         self.child.try_wait().ok().flatten()
     }
 
-    /// What QEMU wrote on stderr so far (at most 16 KiB), trimmed.
+    /// QEMU's own messages so far (stderr and the lines taken out of stdout; at most
+    /// 16 KiB), trimmed.
     #[must_use]
     pub fn stderr_text(&self) -> String {
         self.stderr
@@ -525,14 +736,69 @@ mod tests {
         assert!("nucleo".parse::<Board>().is_err());
         assert_eq!(Board::QemuM4.machine(), "netduinoplus2");
         let mut o = QemuOptions::new(Board::QemuM4, "x");
+        let c = o.qemu_command(4000);
         assert_eq!(
-            o.semihosting().unwrap(),
+            c.semihosting().unwrap(),
             "enable=on,target=native,arg=vsa-firmware,arg=--serve"
         );
+        assert_eq!(c.serials, ["null", "tcp:127.0.0.1:4000"]);
+        let line: Vec<String> = c
+            .command()
+            .unwrap()
+            .get_args()
+            .map(|a| a.to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(
+            line.join(" "),
+            "-machine netduinoplus2 -display none -monitor none -serial null -serial \
+             tcp:127.0.0.1:4000 -semihosting-config enable=on,target=native,arg=vsa-firmware,\
+             arg=--serve -icount shift=3,sleep=on,align=on -kernel x"
+        );
         o.firmware_args = vec!["--seconds".into(), "3".into()];
-        assert!(o.semihosting().unwrap().ends_with(",arg=--seconds,arg=3"));
+        assert!(o
+            .qemu_command(1)
+            .semihosting()
+            .unwrap()
+            .ends_with(",arg=--seconds,arg=3"));
         o.firmware_args = vec!["a,b".into()];
-        assert!(o.semihosting().is_err());
+        assert!(o.qemu_command(1).semihosting().is_err());
+    }
+
+    /// QEMU's warning inserted between two bytes of a defmt frame (as `strace` shows it:
+    /// the log comes one byte per `write`, the warning as one 53-byte `write`), fed in every
+    /// chunking: the log comes out exactly as the firmware wrote it.
+    #[test]
+    fn qemu_messages_are_taken_out_of_the_log_exactly() {
+        let log: Vec<u8> = b"\x00\r\x01z\x05w0.1.03@qemu-WWarn\x00\xff"
+            .iter()
+            .copied()
+            .chain((0..=255u8).rev())
+            .collect();
+        let warning = b"Warning: The guest is now late by 1.0 to 2.0 seconds\n";
+        assert_eq!(warning.len(), 53);
+        for at in [0, 1, 7, 19, 20, log.len()] {
+            let mut stream = log[..at].to_vec();
+            stream.extend_from_slice(warning);
+            stream.extend_from_slice(&log[at..]);
+            stream.extend_from_slice(warning);
+            for chunk in [1, 2, 5, 53, 4096] {
+                let mut f = MessageFilter::new();
+                let (mut out, mut msgs) = (Vec::new(), Vec::new());
+                for c in stream.chunks(chunk) {
+                    f.feed(c, &mut out, &mut msgs);
+                }
+                f.finish(&mut out, &mut msgs);
+                assert_eq!(out, log, "at {at}, chunks of {chunk}");
+                assert_eq!(msgs, [&warning[..], &warning[..]].concat());
+            }
+        }
+        // A stream that ends inside a possible start keeps its bytes.
+        let mut f = MessageFilter::new();
+        let (mut out, mut msgs) = (Vec::new(), Vec::new());
+        f.feed(b"abcWarning: The", &mut out, &mut msgs);
+        f.finish(&mut out, &mut msgs);
+        assert_eq!(out, b"abcWarning: The");
+        assert!(msgs.is_empty());
     }
 
     #[test]

@@ -2,7 +2,9 @@
 
 use std::time::{Duration, Instant};
 
-use protocol::{TelemetrySample, TELEMETRY_RATE_MAX_HZ, TELEMETRY_RATE_MIN_HZ};
+use protocol::{
+    FaultRecord, FaultSet, TelemetrySample, TELEMETRY_RATE_MAX_HZ, TELEMETRY_RATE_MIN_HZ,
+};
 
 use crate::client::{Client, TelemetryFrame};
 use crate::{Error, Result};
@@ -59,6 +61,12 @@ pub struct Recording {
     pub dropped_total: u32,
     /// Frames that did not decode during the recording.
     pub bad_frames: u64,
+    /// Faults latched at the board before the recording.
+    pub faults_before: FaultSet,
+    /// Faults seen during the recording: in any sample, or latched after it.
+    pub faults_seen: FaultSet,
+    /// The board's first fault after the recording, if any.
+    pub first_fault_after: Option<FaultRecord>,
 }
 
 impl Recording {
@@ -66,6 +74,12 @@ impl Recording {
     #[must_use]
     pub fn expected_samples(&self) -> u64 {
         u64::from(self.ticks) * u64::from(self.rate_hz) / 1000
+    }
+
+    /// Faults that latched during the recording (seen, and not latched before it).
+    #[must_use]
+    pub fn new_faults(&self) -> FaultSet {
+        FaultSet(self.faults_seen.0 & !self.faults_before.0)
     }
 }
 
@@ -78,7 +92,8 @@ pub fn find_gaps(frames: &[TelemetryFrame], rate_hz: u16) -> (Vec<Gap>, u64) {
     let mut skipped = 0u64;
     for w in frames.windows(2) {
         let [a, b] = w else { continue };
-        let d = b.sample.tick.saturating_sub(a.sample.tick);
+        // Ticks wrap (u32 ms: after 49.7 days).
+        let d = b.sample.tick.wrapping_sub(a.sample.tick);
         let n = (f64::from(d) / period).round();
         if n > 1.0 {
             gaps.push(Gap {
@@ -137,6 +152,9 @@ impl Client {
         self.drain()?;
         let after = self.status()?;
         let (gaps, counter_skipped) = find_gaps(&frames, rate_hz);
+        let seen = frames
+            .iter()
+            .fold(after.faults.0, |m, f| m | f.sample.faults.0);
         let mut samples: Vec<TelemetrySample> = frames.iter().map(|f| f.sample).collect();
         samples.pop(); // the first sample past the span
         Ok(Recording {
@@ -151,6 +169,9 @@ impl Client {
                 .saturating_sub(before.telemetry_dropped),
             dropped_total: after.telemetry_dropped,
             bad_frames: self.stats().bad_frames.saturating_sub(bad0),
+            faults_before: before.faults,
+            faults_seen: FaultSet(seen),
+            first_fault_after: after.first_fault,
         })
     }
 
@@ -171,7 +192,9 @@ impl Client {
             };
             let tick = f.sample.tick;
             if let Some(prev) = frames.last() {
-                if tick <= prev.sample.tick {
+                // Forward by less than half the counter's range, wrapping included.
+                let step = tick.wrapping_sub(prev.sample.tick);
+                if step == 0 || step > u32::MAX / 2 {
                     return Err(Error::TickBackwards {
                         from: prev.sample.tick,
                         to: tick,
@@ -179,7 +202,7 @@ impl Client {
                 }
             }
             let t0 = frames.first().map_or(tick, |g| g.sample.tick);
-            let done = tick - t0;
+            let done = tick.wrapping_sub(t0);
             frames.push(f);
             progress(&RecordProgress {
                 ticks_done: done.min(ticks),
@@ -253,6 +276,21 @@ mod tests {
             .map(|(i, &t)| frame(i as u16, t))
             .collect();
         assert_eq!(find_gaps(&f, 300), (vec![], 0));
+    }
+
+    #[test]
+    fn ticks_wrap() {
+        let f = [frame(1, u32::MAX - 1), frame(2, 0), frame(4, 4)];
+        let (gaps, skipped) = find_gaps(&f, 500);
+        assert_eq!(skipped, 1);
+        assert_eq!(
+            gaps,
+            vec![Gap {
+                after_tick: 0,
+                before_tick: 4,
+                missing: 1
+            }]
+        );
     }
 
     #[test]

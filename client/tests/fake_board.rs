@@ -380,3 +380,70 @@ fn wait_ready_and_a_closed_connection() {
     let e = c.ping().unwrap_err();
     assert!(matches!(e, Error::Io { .. }), "{e}");
 }
+
+#[test]
+fn a_clear_that_cannot_hold_reports_the_condition_and_the_window() {
+    let board = FakeBoard::start().unwrap();
+    let mut c = connect(&board);
+    c.enable().unwrap();
+    c.move_to(500_000, 100).unwrap();
+    let narrow = Limits {
+        position_max_urad: 100_000,
+        ..Limits::DEFAULT
+    };
+    c.set_limits(&narrow).unwrap();
+    c.wait(Duration::from_millis(20)).unwrap();
+    assert_eq!(c.status().unwrap().state, State::Faulted);
+    match c.clear_fault() {
+        Err(Error::FaultPersists { record, limits }) => {
+            assert_eq!(record.code, FaultCode::PositionLimit);
+            assert_eq!(record.value, 499_880);
+            assert_eq!(limits, Some(narrow));
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(c.limits().unwrap(), narrow);
+    c.set_limits(&Limits::DEFAULT).unwrap();
+    c.clear_fault().unwrap();
+    c.enable().unwrap();
+}
+
+#[test]
+fn an_explicit_disarm_ends_the_heartbeat_session() {
+    let board = FakeBoard::start().unwrap();
+    let mut c = connect(&board);
+    c.set_heartbeat(true);
+    c.wait(Duration::from_millis(100)).unwrap();
+    assert!(board.shared().device.last_heartbeat.is_some());
+    c.disarm_heartbeat().unwrap();
+    assert!(!c.heartbeat_enabled());
+    assert_eq!(board.shared().device.last_heartbeat, None);
+    std::thread::sleep(Duration::from_millis(400));
+    assert!(c.status().unwrap().faults.is_empty());
+}
+
+#[test]
+fn a_recording_names_the_faults_seen_in_it() {
+    let board = FakeBoard::start().unwrap();
+    let mut c = connect(&board);
+    c.enable().unwrap();
+    c.move_to(500_000, 100).unwrap();
+    let b = &board;
+    let rec = std::thread::scope(|s| {
+        s.spawn(|| {
+            std::thread::sleep(Duration::from_millis(100));
+            b.shared().device.limits.position_max_urad = 100_000;
+        });
+        c.record(Duration::from_millis(300), 100, |_| {}).unwrap()
+    });
+    assert!(rec.faults_before.is_empty());
+    assert!(rec.new_faults().contains(FaultCode::PositionLimit));
+    assert_eq!(
+        rec.first_fault_after.map(|f| f.code),
+        Some(FaultCode::PositionLimit)
+    );
+    assert!(rec
+        .samples
+        .iter()
+        .any(|s| s.faults.contains(FaultCode::PositionLimit)));
+}

@@ -46,3 +46,42 @@ fn session_on_the_emulated_board() {
     let log: usize = rx.try_iter().map(|b| b.len()).sum();
     assert!(log > 0, "no defmt bytes from QEMU");
 }
+
+/// QEMU gets SIGKILL when the thread that started it ends (`PR_SET_PDEATHSIG`), so a
+/// killed `vsa` (whose main thread starts it) never leaves it running. A stand-in for
+/// QEMU (a shell script that becomes `sleep`) shows it without an emulator.
+#[cfg(target_os = "linux")]
+#[test]
+fn qemu_dies_with_the_thread_that_started_it() {
+    use std::os::unix::fs::PermissionsExt;
+    use std::os::unix::process::ExitStatusExt;
+    use std::time::Instant;
+
+    let script = std::env::temp_dir().join(format!("fake-qemu-{}.sh", std::process::id()));
+    std::fs::write(&script, "#!/bin/sh\nexec sleep 30\n").unwrap();
+    std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let line = client::qemu::QemuCommand {
+        qemu: script.clone(),
+        machine: "netduinoplus2".into(),
+        elf: "firmware.elf".into(),
+        argv: vec!["vsa-firmware".into()],
+        serials: vec!["null".into()],
+        icount: "shift=3".into(),
+    };
+    let mut child = std::thread::spawn(move || line.command().unwrap().spawn().unwrap())
+        .join()
+        .unwrap();
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(5),
+            "the stand-in outlived the thread that started it"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    let _ = std::fs::remove_file(&script);
+    assert_eq!(status.signal(), Some(9), "{status:?}");
+}

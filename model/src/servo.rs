@@ -227,6 +227,11 @@ impl Servo {
         self.supervisor.heartbeat(self.tick.wrapping_add(1));
     }
 
+    /// Ends the heartbeat session: the command timeout is off until the next heartbeat.
+    pub fn disarm_heartbeat(&mut self) {
+        self.supervisor.disarm_heartbeat();
+    }
+
     /// Gives the controller a new command.
     ///
     /// # Errors

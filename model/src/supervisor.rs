@@ -289,6 +289,10 @@ pub struct Supervisor {
     /// Consecutive ticks the torque estimate has been beyond τ_cap.
     over_ticks: u16,
     last_heartbeat: Option<u32>,
+    /// The first condition that held at the last check (latched then or before), with its
+    /// value then: what a clear would latch again at the next tick. Events (a sensor jump,
+    /// the command timeout) are not conditions.
+    condition: Option<Fault>,
 }
 
 impl Supervisor {
@@ -309,6 +313,7 @@ impl Supervisor {
             unchanged_ticks: 0,
             over_ticks: 0,
             last_heartbeat: None,
+            condition: None,
         })
     }
 
@@ -438,6 +443,19 @@ impl Supervisor {
         self.last_heartbeat = None;
     }
 
+    /// Whether a heartbeat has armed the timeout (and nothing disarmed it since).
+    #[must_use]
+    pub const fn heartbeat_armed(&self) -> bool {
+        self.last_heartbeat.is_some()
+    }
+
+    /// The first fault condition that held at the last check, with its value and tick
+    /// then: a [`Supervisor::clear`] now would see it latch again at the next tick.
+    #[must_use]
+    pub const fn condition(&self) -> Option<Fault> {
+        self.condition
+    }
+
     /// Forgets the sensor history (last readings, frozen-count counter): the next tick
     /// is the first of a new run, e.g. after the mechanism was re-mounted.
     pub fn forget_history(&mut self) {
@@ -477,7 +495,14 @@ impl Supervisor {
     /// same tick still latch their codes in [`Supervisor::latched`]).
     pub fn check(&mut self, tick: u32, r: &Readings, out: &Output) -> Option<Fault> {
         let mut new: Option<Fault> = None;
+        self.condition = None;
         let mut note = |s: &mut Self, code: FaultCode, value: i32| {
+            // A jump (a change between two ticks) and the timeout (which ends its
+            // session) are events, gone at the next tick; the rest are conditions.
+            let event = matches!(code, FaultCode::SensorJump | FaultCode::CommandTimeout);
+            if s.condition.is_none() && !event {
+                s.condition = Some(Fault { code, value, tick });
+            }
             if let Some(f) = s.latch(code, value, tick) {
                 if new.is_none() {
                     new = Some(f);
@@ -568,6 +593,8 @@ impl Supervisor {
                     FaultCode::CommandTimeout,
                     i32::try_from(since).unwrap_or(i32::MAX),
                 );
+                // The session that armed the timeout is over: a clear recovers.
+                self.last_heartbeat = None;
             }
         }
         new
@@ -726,6 +753,34 @@ mod tests {
         assert_eq!(s.check(600, &quiet(0), &at_rest()), None);
         let f = s.check(601, &quiet(0), &at_rest()).unwrap();
         assert_eq!((f.code, f.value), (FaultCode::CommandTimeout, 101));
+        // The timeout ends the session: disarmed, no condition left, a clear holds.
+        assert!(!s.heartbeat_armed());
+        assert_eq!(s.condition(), None);
+        assert_eq!(s.check(602, &quiet(0), &at_rest()), None);
+        s.clear();
+        assert_eq!(s.check(700, &quiet(0), &at_rest()), None);
+        assert!(s.latched().is_empty());
+    }
+
+    #[test]
+    fn the_condition_of_the_last_check_is_kept_for_a_clear() {
+        let (mut s, _) = sup(3);
+        let mut out = at_rest();
+        let mut no_pot = quiet(0);
+        no_pot.gear_pot = None;
+        // Outside the window: latched, and still there at the next check.
+        out.link_angle = Angle::from_bits(3 * Q32_ONE);
+        s.check(1, &no_pot, &out).unwrap();
+        assert_eq!(s.check(2, &no_pot, &out), None);
+        let c = s.condition().unwrap();
+        assert_eq!(
+            (c.code, c.value, c.tick),
+            (FaultCode::PositionLimit, 3_000_000, 2)
+        );
+        // Back inside: the condition is gone, the latch stays until cleared.
+        s.check(3, &no_pot, &at_rest());
+        assert_eq!(s.condition(), None);
+        assert!(s.latched().contains(FaultCode::PositionLimit));
     }
 
     #[test]

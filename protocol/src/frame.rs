@@ -25,11 +25,11 @@ mod sealed {
 }
 
 impl Message for Request {
-    const VARIANTS: u32 = 16;
+    const VARIANTS: u32 = 18;
 }
 
 impl Message for Reply {
-    const VARIANTS: u32 = 5;
+    const VARIANTS: u32 = 7;
 }
 
 /// One frame: version, sequence number, body (postcard-encoded in this order).

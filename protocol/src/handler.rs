@@ -1,7 +1,7 @@
 //! The request handler: one reply per decoded frame, side effects through [`Device`].
 
 use crate::frame::{Decoder, Frame, FrameError};
-use crate::msg::{ErrorCode, Gains, Limits, Reply, Request, Status};
+use crate::msg::{ErrorCode, FaultRecord, Gains, Limits, Reply, Request, Status};
 use crate::VERSION;
 
 /// What the handler asks of the device (implemented by the firmware over its controller
@@ -25,11 +25,17 @@ pub trait Device {
     /// Normally none: disabling is always allowed.
     fn disable(&mut self) -> Result<(), ErrorCode>;
 
-    /// [`Request::ClearFault`]: clear the latched faults; the motor stays disabled.
+    /// [`Request::ClearFault`]: clear the latched faults; the motor stays disabled. Only
+    /// called when [`Device::persisting_fault`] is `None`.
     ///
     /// # Errors
-    /// E.g. [`ErrorCode::NotAllowed`] while the cause persists.
+    /// As the device decides.
     fn clear_fault(&mut self) -> Result<(), ErrorCode>;
+
+    /// A latched fault whose condition still held at the last check (its value then), if
+    /// any: [`Request::ClearFault`] then clears nothing and answers
+    /// [`Reply::FaultPersists`].
+    fn persisting_fault(&mut self) -> Option<FaultRecord>;
 
     /// [`Request::SetClutchLength`]: the clutch is at `length_um` µm; reconfigure.
     ///
@@ -86,8 +92,19 @@ pub trait Device {
     /// As the device decides.
     fn set_telemetry_rate(&mut self, rate_hz: u16) -> Result<(), ErrorCode>;
 
-    /// [`Request::Heartbeat`]: restart the command timeout.
+    /// [`Request::Heartbeat`]: arm (the first one) and restart the command timeout.
     fn heartbeat(&mut self);
+
+    /// [`Request::DisarmHeartbeat`]: the command timeout is off until the next heartbeat.
+    fn disarm_heartbeat(&mut self);
+
+    /// A well-formed request of this version within its ranges arrived (whatever it asks,
+    /// carried out or refused by the device): restart the command timeout if it is armed.
+    /// Called before the request is carried out.
+    fn link_activity(&mut self);
+
+    /// [`Request::GetLimits`]: the limits and the position window in force.
+    fn limits(&mut self) -> Limits;
 
     /// [`Request::GetStatus`]: the current status (`protocol_errors` is overwritten by the
     /// handler).
@@ -241,7 +258,10 @@ impl Handler {
         }
         bump(&mut self.requests);
         let reply = match frame.body.validate() {
-            Ok(()) => self.dispatch(frame.body, dev),
+            Ok(()) => {
+                dev.link_activity();
+                self.dispatch(frame.body, dev)
+            }
             Err(code) => Err(code),
         };
         let body = match reply {
@@ -264,7 +284,10 @@ impl Handler {
             }
             Request::Enable => done(dev.enable()),
             Request::Disable => done(dev.disable()),
-            Request::ClearFault => done(dev.clear_fault()),
+            Request::ClearFault => match dev.persisting_fault() {
+                Some(record) => Ok(Reply::FaultPersists(record)),
+                None => done(dev.clear_fault()),
+            },
             Request::SetClutchLength { length_um } => done(dev.set_clutch_length(length_um)),
             Request::SetStiffness {
                 stiffness_mnm_per_rad,
@@ -289,6 +312,11 @@ impl Handler {
                 dev.heartbeat();
                 Ok(Reply::Ok)
             }
+            Request::DisarmHeartbeat => {
+                dev.disarm_heartbeat();
+                Ok(Reply::Ok)
+            }
+            Request::GetLimits => Ok(Reply::Limits(dev.limits())),
         }
     }
 

@@ -26,7 +26,9 @@ pub enum Request {
     Enable,
     /// Disable the motor (bridge off). Always allowed.
     Disable,
-    /// Clear the latched faults (the motor stays disabled).
+    /// Clear the latched faults (the motor stays disabled). Reply: [`Reply::Ok`], or
+    /// [`Reply::FaultPersists`] (nothing cleared) while the condition of a fault still
+    /// holds, e.g. the link is still outside the position window.
     ClearFault,
     /// The clutch now sits at active length `length_um` (the user moved it): reconfigure
     /// the controller for it.
@@ -76,8 +78,16 @@ pub enum Request {
         /// [`TELEMETRY_RATE_MAX_HZ`] (10–500 Hz).
         rate_hz: u16,
     },
-    /// Keeps the command timeout from firing. Reply: [`Reply::Ok`].
+    /// Arms the command timeout (the first one) and restarts it. Once armed, every
+    /// well-formed request within its ranges restarts it too (link activity), so other traffic of the same
+    /// host never starves it. Reply: [`Reply::Ok`].
     Heartbeat,
+    /// Ends the heartbeat session: the command timeout is off until the next
+    /// [`Request::Heartbeat`] (a session that armed it sends this when it ends; a latched
+    /// `command-timeout` disarms it too). Reply: [`Reply::Ok`].
+    DisarmHeartbeat,
+    /// Reply: [`Reply::Limits`], the live limits and the position window in force.
+    GetLimits,
 }
 
 /// PID gains, each in 10⁻³ of the controller's unit (duty ‰ out, link angle in rad), so
@@ -171,7 +181,9 @@ impl Request {
             | Request::ClearFault
             | Request::Hold
             | Request::AutoGains
-            | Request::Heartbeat => true,
+            | Request::Heartbeat
+            | Request::DisarmHeartbeat
+            | Request::GetLimits => true,
             Request::SetClutchLength { length_um } => {
                 (CLUTCH_MIN_UM..=CLUTCH_MAX_UM).contains(&length_um)
             }
@@ -219,7 +231,8 @@ pub enum ErrorCode {
     /// The frame decoded but its message index is not a request this version knows.
     UnknownMessage,
     /// A field is outside its documented range ([`Request::validate`], or the device's
-    /// own check, e.g. a stiffness whose clutch length is outside the design's range).
+    /// own check, e.g. a stiffness whose clutch length is outside the design's range, or a
+    /// motion target outside the position window in force, [`Request::GetLimits`]).
     OutOfRange,
     /// Not allowed in the current state (e.g. enable or move while a fault is latched).
     NotAllowed,
@@ -265,6 +278,12 @@ pub enum Reply {
     /// wrapping counter of the samples taken, dropped ones included, so a gap in `seq` is
     /// the number of samples the device dropped because the link was slow.
     Telemetry(TelemetrySample),
+    /// Reply to [`Request::GetLimits`].
+    Limits(Limits),
+    /// Reply to [`Request::ClearFault`] when the condition of a latched fault still holds
+    /// (nothing was cleared): the fault, its value now (unit per [`FaultCode`]) and the
+    /// tick it was last seen at.
+    FaultPersists(FaultRecord),
 }
 
 /// Operating state.

@@ -21,8 +21,10 @@ use protocol::{
 /// Independent statement of the documented request ranges (the issue and the crate docs),
 /// to check `Request::validate` against.
 fn in_range(r: &Request) -> bool {
-    const TWO_PI_URAD: i64 = 6_283_185; // 2π rad, rounded down
-    let angle = |a: i32| i64::from(a).abs() <= TWO_PI_URAD;
+    // 2.55 rad: inside the gear pot's measurable ±2.613 rad (300° over 1024 counts, 511 from
+    // the centre).
+    const MEASURABLE_URAD: i64 = 2_550_000;
+    let angle = |a: i32| i64::from(a).abs() <= MEASURABLE_URAD;
     match *r {
         Request::SetClutchLength { length_um } => (1_000..=8_000).contains(&length_um),
         Request::SetStiffness {
@@ -57,7 +59,9 @@ fn in_range(r: &Request) -> bool {
         | Request::ClearFault
         | Request::Hold
         | Request::AutoGains
-        | Request::Heartbeat => true,
+        | Request::Heartbeat
+        | Request::DisarmHeartbeat
+        | Request::GetLimits => true,
     }
 }
 
@@ -252,6 +256,13 @@ proptest! {
                     prop_assert!((clutch_of(stiffness_mnm_per_rad) - f64::from(length_um)).abs() <= 0.5);
                 }
                 Reply::Telemetry(_) => return Err(TestCaseError::fail("telemetry as a reply")),
+                Reply::Limits(l) => {
+                    prop_assert_eq!(req, Request::GetLimits);
+                    prop_assert_eq!(l, dev.limits);
+                }
+                Reply::FaultPersists(_) => {
+                    return Err(TestCaseError::fail("the mock never has a persisting fault"))
+                }
             }
         } else {
             prop_assert_eq!(reply.body, Reply::Error(ErrorCode::OutOfRange));
@@ -399,7 +410,7 @@ proptest! {
 #[test]
 fn frames_are_bounded_and_message_counts_match() {
     println!("fuzz cases per property: {}", config(FUZZ_CASES).cases);
-    assert_eq!(Request::VARIANTS, 16);
-    assert_eq!(Reply::VARIANTS, 5);
+    assert_eq!(Request::VARIANTS, 18);
+    assert_eq!(Reply::VARIANTS, 7);
     const { assert!(MAX_FRAME <= 64, "a frame fits a 64-byte DMA/queue slot") };
 }

@@ -153,6 +153,69 @@ fn a_session() {
 }
 
 #[test]
+fn a_persisting_fault_is_not_cleared_and_says_why() {
+    let mut rig = Rig::new(MockDevice::faulted());
+    let now = protocol::FaultRecord {
+        code: FaultCode::PositionLimit,
+        value: 2_640_000,
+        tick: 99,
+    };
+    rig.device.persisting = Some(now);
+    assert_eq!(
+        send(&mut rig, 1, Request::ClearFault).body,
+        Reply::FaultPersists(now)
+    );
+    assert_eq!(rig.device.state, State::Faulted, "nothing cleared");
+    assert!(rig.device.calls.is_empty(), "clear_fault was not called");
+    rig.device.persisting = None;
+    assert_eq!(send(&mut rig, 2, Request::ClearFault).body, Reply::Ok);
+    assert_eq!(rig.device.state, State::Disabled);
+    assert_eq!(
+        send(&mut rig, 3, Request::GetLimits).body,
+        Reply::Limits(Limits::DEFAULT)
+    );
+}
+
+#[test]
+fn every_valid_request_is_link_activity_once_armed_and_a_disarm_ends_it() {
+    let mut rig = Rig::new(MockDevice::default());
+    send(&mut rig, 1, Request::GetStatus);
+    assert_eq!(rig.device.activity, 0, "not armed yet");
+    send(&mut rig, 2, Request::Heartbeat);
+    send(&mut rig, 3, Request::GetStatus);
+    send(&mut rig, 4, Request::Ping);
+    // Refused by the device, still proof that the host is there.
+    send(&mut rig, 5, Request::Enable);
+    send(
+        &mut rig,
+        6,
+        Request::Move {
+            target_urad: 0,
+            duration_ms: 1,
+        },
+    );
+    assert_eq!(rig.device.activity, 4, "status, ping, enable, move");
+    // Out of range or garbled: not activity.
+    send(
+        &mut rig,
+        7,
+        Request::Move {
+            target_urad: 9_000_000,
+            duration_ms: 1,
+        },
+    );
+    rig.feed(&[0x55, 0x13, 0x00]);
+    assert_eq!(rig.device.activity, 4);
+    assert_eq!(send(&mut rig, 8, Request::DisarmHeartbeat).body, Reply::Ok);
+    assert!(!rig.device.armed);
+    send(&mut rig, 9, Request::Ping);
+    assert_eq!(
+        rig.device.activity, 5,
+        "the disarm itself counted, nothing after"
+    );
+}
+
+#[test]
 fn faults_block_enable_until_cleared() {
     let mut rig = Rig::new(MockDevice::faulted());
     assert_eq!(
@@ -189,15 +252,15 @@ fn range_boundaries() {
         stiffness_mnm_per_rad: 0,
     });
     ok(R::Move {
-        target_urad: 6_283_185,
+        target_urad: 2_550_000,
         duration_ms: 1,
     });
     ok(R::Move {
-        target_urad: -6_283_185,
+        target_urad: -2_550_000,
         duration_ms: 60_000,
     });
     bad(R::Move {
-        target_urad: 6_283_186,
+        target_urad: 2_550_001,
         duration_ms: 1,
     });
     bad(R::Move {
@@ -213,10 +276,10 @@ fn range_boundaries() {
         duration_ms: 60_001,
     });
     ok(R::Step {
-        target_urad: -6_283_185,
+        target_urad: -2_550_000,
     });
     bad(R::Step {
-        target_urad: -6_283_186,
+        target_urad: -2_550_001,
     });
     ok(R::Sine {
         amplitude_urad: 0,
@@ -285,11 +348,11 @@ fn range_boundaries() {
         ..l
     }));
     bad(R::SetLimits(Limits {
-        position_min_urad: -6_283_186,
+        position_min_urad: -2_550_001,
         ..l
     }));
     bad(R::SetLimits(Limits {
-        position_max_urad: 6_283_186,
+        position_max_urad: 2_550_001,
         ..l
     }));
     for rate_hz in [0, 10, 250, 500] {
@@ -333,9 +396,9 @@ fn each_bad_frame_kind() {
         rig.feed(&w),
         vec![Frame::new(78, Reply::Error(ErrorCode::UnsupportedVersion))]
     );
-    // Unknown message index 16 with a good CRC: echoes the seq.
+    // Unknown message index 18 with a good CRC: echoes the seq.
     let mut w = [0u8; MAX_FRAME];
-    let n = encode_raw(&[VERSION, 79, 16], &mut w).unwrap();
+    let n = encode_raw(&[VERSION, 79, 18], &mut w).unwrap();
     assert_eq!(
         rig.feed(&w[..n]),
         vec![Frame::new(79, Reply::Error(ErrorCode::UnknownMessage))]

@@ -158,6 +158,8 @@ fn largest_requests() -> Vec<Request> {
         }),
         Request::StreamTelemetry { rate_hz: u16::MAX },
         Request::Heartbeat,
+        Request::DisarmHeartbeat,
+        Request::GetLimits,
     ]
 }
 
@@ -200,6 +202,19 @@ fn largest_replies() -> Vec<Reply> {
             length_um: u32::MAX,
         },
         Reply::Telemetry(largest_sample()),
+        Reply::Limits(Limits {
+            torque_margin_permille: u16::MAX,
+            current_ma: u16::MAX,
+            motor_torque_unm: u32::MAX,
+            duty_permille: u16::MAX,
+            position_min_urad: i32::MIN,
+            position_max_urad: i32::MIN,
+        }),
+        Reply::FaultPersists(FaultRecord {
+            code: FaultCode::CommandTimeout,
+            value: i32::MIN,
+            tick: u32::MAX,
+        }),
     ]
 }
 

@@ -223,6 +223,8 @@ pub struct Actuator {
     /// Telemetry pacing and drop count.
     pub telemetry: TelemetryGate,
     limits: LimitFlags,
+    /// Measured link angle at the last tick, I32F32 rad (a sine's centre).
+    link_angle: i64,
 }
 
 impl Actuator {
@@ -233,6 +235,7 @@ impl Actuator {
             servo,
             telemetry: TelemetryGate::default(),
             limits: LimitFlags::NONE,
+            link_angle: 0,
         }
     }
 
@@ -245,6 +248,7 @@ impl Actuator {
         out: &TickOutput,
     ) -> Option<(u16, TelemetrySample)> {
         self.limits = wire_limits(&out.control.flags);
+        self.link_angle = out.control.link_angle.to_bits();
         let seq = self.telemetry.due()?;
         Some((seq, self.sample(input, out)))
     }
@@ -406,6 +410,24 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         Ok(length_um)
     }
 
+    /// Whether `lo..=hi` (I32F32 rad) lies inside the position window in force.
+    fn within_window(&self, lo: i64, hi: i64) -> bool {
+        let s = &self.service.supervision;
+        s.position_min.to_bits() <= lo && hi <= s.position_max.to_bits()
+    }
+
+    /// A motion target (µrad) inside the position window: the supervisor would latch
+    /// `position-limit` out there, and the sensors measure only so far
+    /// ([`protocol::TARGET_MAX_URAD`]), so such a target is refused, not attempted.
+    fn target(&self, target_urad: i32) -> Result<Angle, ErrorCode> {
+        let bits = micro_to_q32(target_urad.into());
+        if self.within_window(bits, bits) {
+            Ok(Angle::from_bits(bits))
+        } else {
+            Err(ErrorCode::OutOfRange)
+        }
+    }
+
     /// Gives the servo a motion command; only while enabled.
     fn motion(&mut self, cmd: Command) -> Result<(), ErrorCode> {
         self.actuator.lock(|a| {
@@ -432,6 +454,20 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
         Ok(())
     }
 
+    fn persisting_fault(&mut self) -> Option<FaultRecord> {
+        self.actuator.lock(|a| {
+            let servo = &a.servo;
+            if servo.faults().is_empty() {
+                return None;
+            }
+            servo.supervisor().condition().map(|f| FaultRecord {
+                code: wire_fault_code(f.code),
+                value: f.value,
+                tick: f.tick,
+            })
+        })
+    }
+
     fn set_clutch_length(&mut self, length_um: u32) -> Result<(), ErrorCode> {
         let mut config = self.service.config;
         config.clutch = ClutchSetting::Length(Length::from_bits(milli_to_q32(length_um.into())));
@@ -448,21 +484,30 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
     }
 
     fn command_move(&mut self, target_urad: i32, duration_ms: u32) -> Result<(), ErrorCode> {
+        let target = self.target(target_urad)?;
         self.motion(Command::Move {
-            target: Angle::from_bits(micro_to_q32(target_urad.into())),
+            target,
             duration_ms,
         })
     }
 
     fn command_step(&mut self, target_urad: i32) -> Result<(), ErrorCode> {
-        self.motion(Command::Step {
-            target: Angle::from_bits(micro_to_q32(target_urad.into())),
-        })
+        let target = self.target(target_urad)?;
+        self.motion(Command::Step { target })
     }
 
     fn command_sine(&mut self, amplitude_urad: u32, frequency_mhz: u32) -> Result<(), ErrorCode> {
         let hz = I32F32::from_bits(milli_to_q32(frequency_mhz.into()));
         let frequency = Frequency::from_hz(hz).map_err(|_| ErrorCode::OutOfRange)?;
+        // About the link angle now: both extremes inside the window.
+        let centre = self.actuator.lock(|a| a.link_angle);
+        let amplitude = micro_to_q32(amplitude_urad.into());
+        if !self.within_window(
+            centre.saturating_sub(amplitude),
+            centre.saturating_add(amplitude),
+        ) {
+            return Err(ErrorCode::OutOfRange);
+        }
         self.motion(Command::Sine {
             amplitude: Angle::from_bits(micro_to_q32(amplitude_urad.into())),
             frequency,
@@ -512,6 +557,32 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
 
     fn heartbeat(&mut self) {
         self.actuator.lock(|a| a.servo.heartbeat());
+    }
+
+    fn disarm_heartbeat(&mut self) {
+        self.actuator.lock(|a| a.servo.disarm_heartbeat());
+    }
+
+    fn link_activity(&mut self) {
+        self.actuator.lock(|a| {
+            if a.servo.supervisor().heartbeat_armed() {
+                a.servo.heartbeat();
+            }
+        });
+    }
+
+    fn limits(&mut self) -> Limits {
+        let l = &self.service.config.limits;
+        let s = &self.service.supervision;
+        let milli = |bits: i64| q32_to_milli(bits).clamp(0, i32::from(u16::MAX)) as u16;
+        Limits {
+            torque_margin_permille: milli(l.torque_margin.to_bits()),
+            current_ma: milli(l.max_current_a.to_bits()),
+            motor_torque_unm: sat_u32(i64::from(q32_to_micro(l.max_motor_torque.to_bits()))),
+            duty_permille: l.max_duty.unsigned_abs(),
+            position_min_urad: q32_to_micro(s.position_min.to_bits()),
+            position_max_urad: q32_to_micro(s.position_max.to_bits()),
+        }
     }
 
     fn status(&mut self) -> Status {

@@ -55,15 +55,28 @@ impl Board {
 
     /// Runs `n` ticks with the link at rest at encoder count `enc`, 0 A.
     fn run(&mut self, n: u32, enc: u16) {
+        self.run_at(n, enc, 512);
+    }
+
+    /// Runs `n` ticks with the link encoder at `enc` and the gear pot at `pot`, 0 A.
+    fn run_at(&mut self, n: u32, enc: u16, pot: u16) {
         let input = TickInput {
             link_encoder: enc,
-            gear_pot: Some(512),
+            gear_pot: Some(pot),
             current_adc: 2048,
             read_error: None,
         };
         for _ in 0..n {
             let out = self.actuator.0.servo.tick(&input);
             let _ = self.actuator.0.after_tick(&input, &out);
+        }
+    }
+
+    /// Turns the link (by hand: the motor is off) from encoder count 0 to `to` counts, one
+    /// count per tick, the gear pot following (beams unloaded).
+    fn turn_by_hand(&mut self, to: u16) {
+        for c in 0..=to {
+            self.run_at(1, c, b_pot(c));
         }
     }
 }
@@ -175,7 +188,7 @@ fn a_heartbeat_arms_the_timeout_and_its_fault_reaches_the_status() {
     assert_eq!(b.ask(Request::Enable), Reply::Ok);
     assert_eq!(b.ask(Request::Heartbeat), Reply::Ok);
     b.run(100, 0);
-    assert_eq!(b.status().state, State::Enabled);
+    assert_eq!(b.actuator.0.servo.state(), ServoState::Enabled);
     b.run(2, 0);
     let s = b.status();
     assert_eq!(s.state, State::Faulted);
@@ -194,6 +207,137 @@ fn a_heartbeat_arms_the_timeout_and_its_fault_reaches_the_status() {
     assert!(b.status().faults.is_empty());
     assert_eq!(b.ask(Request::Enable), Reply::Ok);
     assert_eq!(b.actuator.0.servo.state(), ServoState::Enabled);
+    // The timeout ended the session that armed it: the clear holds.
+    b.run(500, 0);
+    assert_eq!(b.actuator.0.servo.state(), ServoState::Enabled);
+}
+
+#[test]
+fn other_requests_keep_an_armed_timeout_alive_and_a_disarm_ends_it() {
+    let mut b = Board::new();
+    assert_eq!(b.ask(Request::Enable), Reply::Ok);
+    assert_eq!(b.ask(Request::Heartbeat), Reply::Ok);
+    // 1 s of status requests every 60 ms and no heartbeat: the link is alive.
+    for _ in 0..17 {
+        b.run(60, 0);
+        b.status();
+    }
+    assert_eq!(b.actuator.0.servo.state(), ServoState::Enabled);
+    // Silence: the timeout fires 101 ticks after the tick the last request preceded.
+    b.run(101, 0);
+    assert_eq!(b.actuator.0.servo.state(), ServoState::Enabled);
+    b.run(1, 0);
+    assert_eq!(b.actuator.0.servo.state(), ServoState::Faulted);
+    assert_eq!(b.ask(Request::ClearFault), Reply::Ok);
+    assert_eq!(b.ask(Request::Enable), Reply::Ok);
+    // Armed again, then disarmed: silence is no fault.
+    assert_eq!(b.ask(Request::Heartbeat), Reply::Ok);
+    b.run(50, 0);
+    assert_eq!(b.ask(Request::DisarmHeartbeat), Reply::Ok);
+    b.run(1_000, 0);
+    assert_eq!(b.actuator.0.servo.state(), ServoState::Enabled);
+}
+
+#[test]
+fn targets_outside_the_position_window_are_refused() {
+    let mut b = Board::new();
+    assert_eq!(b.ask(Request::Enable), Reply::Ok);
+    b.run(5, 0);
+    let mv = |t: i32| Request::Move {
+        target_urad: t,
+        duration_ms: 300,
+    };
+    let refused = Reply::Error(ErrorCode::OutOfRange);
+    assert_eq!(b.ask(mv(2_500_001)), refused);
+    assert_eq!(
+        b.ask(Request::Step {
+            target_urad: -2_500_001
+        }),
+        refused
+    );
+    assert_eq!(b.ask(mv(2_500_000)), Reply::Ok);
+    assert_eq!(b.ask(Request::Hold), Reply::Ok);
+    let narrow = Limits {
+        position_min_urad: -500_000,
+        position_max_urad: 500_000,
+        ..Limits::DEFAULT
+    };
+    assert_eq!(b.ask(Request::SetLimits(narrow)), Reply::Ok);
+    assert_eq!(b.ask(Request::GetLimits), Reply::Limits(narrow));
+    assert_eq!(b.ask(mv(600_000)), refused);
+    // A sine about the link's angle now (0): ±0.6 rad leaves the window, ±0.4 does not.
+    let sine = |a: u32| Request::Sine {
+        amplitude_urad: a,
+        frequency_mhz: 1_000,
+    };
+    assert_eq!(b.ask(sine(600_000)), refused);
+    assert_eq!(b.ask(sine(400_000)), Reply::Ok);
+}
+
+#[test]
+fn the_default_limits_are_what_get_limits_reports() {
+    let mut b = Board::new();
+    assert_eq!(b.ask(Request::GetLimits), Reply::Limits(Limits::DEFAULT));
+}
+
+#[test]
+fn a_clear_while_the_link_is_outside_the_window_clears_nothing_and_says_where() {
+    let mut b = Board::new();
+    // 1643 counts = 2.5203 rad: outside the default ±2.5 rad window.
+    b.turn_by_hand(1_643);
+    let s = b.status();
+    assert_eq!(s.state, State::Faulted);
+    assert_eq!(s.first_fault.unwrap().code, FaultCode::PositionLimit);
+    let Reply::FaultPersists(now) = b.ask(Request::ClearFault) else {
+        panic!("the clear should have been refused");
+    };
+    assert_eq!(now.code, FaultCode::PositionLimit);
+    // The measured angle is the centre of count 1643.
+    let expected = (1_643.5 * std::f64::consts::TAU / 4096.0 * 1e6).round();
+    assert!((f64::from(now.value) - expected).abs() <= 1.0, "{now:?}");
+    assert_eq!(b.status().state, State::Faulted, "nothing cleared");
+    // The way out: widen the window; after a tick the clear holds and enable works.
+    let wide = Limits {
+        position_max_urad: 2_550_000,
+        ..Limits::DEFAULT
+    };
+    assert_eq!(b.ask(Request::SetLimits(wide)), Reply::Ok);
+    b.run_at(1, 1_643, b_pot(1_643));
+    assert_eq!(b.ask(Request::ClearFault), Reply::Ok);
+    b.run_at(5, 1_643, b_pot(1_643));
+    assert_eq!(b.ask(Request::Enable), Reply::Ok);
+    assert_eq!(
+        b.ask(Request::Move {
+            target_urad: 0,
+            duration_ms: 1_000
+        }),
+        Reply::Ok
+    );
+}
+
+/// The gear pot's count for a link at encoder count `c` with unloaded beams.
+fn b_pot(c: u16) -> u16 {
+    let rad = f64::from(c) * std::f64::consts::TAU / 4096.0;
+    (512.0 + rad * 1024.0 / (300f64.to_radians())).round() as u16
+}
+
+#[test]
+fn the_largest_target_stays_inside_what_the_gear_pot_measures() {
+    // The pot saturates 511 counts above its centre (300° over 1024 counts); a link at the
+    // largest target with the beams bent to the edge of their envelope at the longest
+    // clutch length must still read below that.
+    let design = Design::paper();
+    let pot_max_rad = 511.0 * 300f64.to_radians() / 1024.0;
+    let max = f64::from(protocol::TARGET_MAX_URAD) / 1e6;
+    for l_mm in 1..=8 {
+        let config = Config::paper(Length::from_int(l_mm));
+        let servo = Servo::new(&design, &config, &SupervisorConfig::DEFAULT).unwrap();
+        let envelope: f64 = servo.supervisor().deflection_envelope().get().to_num();
+        assert!(
+            max + envelope < pot_max_rad,
+            "L = {l_mm} mm: {max} + {envelope} rad ≥ {pot_max_rad} rad"
+        );
+    }
 }
 
 #[test]

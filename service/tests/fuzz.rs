@@ -55,6 +55,8 @@ fn request() -> impl Strategy<Value = Request> {
         Just(Request::Hold),
         Just(Request::AutoGains),
         Just(Request::Heartbeat),
+        Just(Request::DisarmHeartbeat),
+        Just(Request::GetLimits),
         any::<u32>().prop_map(|length_um| Request::SetClutchLength { length_um }),
         (0u32..10_000).prop_map(|length_um| Request::SetClutchLength { length_um }),
         any::<u32>().prop_map(|k| Request::SetStiffness {
@@ -90,11 +92,21 @@ fn request() -> impl Strategy<Value = Request> {
     ]
 }
 
-/// Everything a refused request must leave as it was.
+/// Everything a refused request must leave as it was — but the time of the last link
+/// activity: any valid request, refused or not, restarts an armed command timeout (whether
+/// it is armed is kept).
 fn fingerprint(a: &Actuator, s: &Service) -> String {
+    let servo = format!("{:?}", a.servo);
+    let servo = match servo.find("last_heartbeat: Some(") {
+        Some(at) => {
+            let rest = &servo[at..];
+            let end = rest.find(')').map_or(servo.len(), |e| at + e);
+            format!("{}last_heartbeat: Some(_{}", &servo[..at], &servo[end..])
+        }
+        None => servo,
+    };
     format!(
-        "{:?} {:?} {:?} {:?}",
-        a.servo,
+        "{servo} {:?} {:?} {:?}",
         a.telemetry,
         s.config(),
         s.supervision()

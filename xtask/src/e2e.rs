@@ -1,7 +1,11 @@
 //! The end-to-end test of the host link: an emulated board serving the protocol
 //! (`--serve`), driven through the same `client` library as `vsa`, is configured, enabled,
-//! moved and recorded; 10 kB of random bytes are sent during a second move; then the
-//! heartbeats stop and the board must latch `command-timeout`.
+//! moved and recorded; 10 kB of random bytes are sent during a second move (which also
+//! measures what the emulated USART takes per second); a target outside the position
+//! window is refused; heartbeats are armed and the line is flooded with valid frames
+//! faster than the USART takes them, so the heartbeats queue behind them (the board must
+//! count the frames as link activity and latch nothing); then the heartbeats stop and the
+//! board must latch `command-timeout`, which a clear must recover from for good.
 //!
 //! The recorded motion is held to the controller's tolerances for a 0.5 rad move with a
 //! 0.3 N·m load (`--load-mnm 300`): overshoot ≤ 5 %, within ±1 encoder count of the target
@@ -13,8 +17,9 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, ensure, Context, Result};
+use client::protocol::{encode_to_vec, Frame, Request};
 use client::qemu::{Board as ClientBoard, LogSink, QemuBoard, QemuOptions};
-use client::{Client, FaultCode, State, TelemetryFrame};
+use client::{Client, ErrorCode, FaultCode, State, TelemetryFrame};
 use plant::metrics::{move_command_tick, StepResponse};
 use plant::ENCODER_COUNT_RAD;
 
@@ -46,27 +51,43 @@ pub struct Report {
     pub lost_samples: u64,
     /// Wall-clock time the 10 kB took to go out, and the protocol errors they caused.
     pub garbage_secs: f64,
+    /// Bytes per second the emulated USART took during the garbage.
+    pub usart_bytes_per_s: f64,
+    /// Valid frames flooded onto the line while heartbeats were armed, their bytes, and
+    /// the wall-clock time until the board had taken them all.
+    pub flood_frames: usize,
+    /// Bytes of the flood.
+    pub flood_bytes: usize,
+    /// Seconds until the board had taken the flood.
+    pub flood_secs: f64,
     /// Protocol errors counted by the board after the garbage.
     pub protocol_errors: u32,
     /// |link − target| at the end of the move made under garbage, counts.
     pub garbage_move_error_counts: f64,
     /// Ticks from the last heartbeat's arming to the `command-timeout` fault (its value).
     pub timeout_ms: i32,
+    /// What the clear after the timeout did.
+    pub after_clear: String,
 }
 
 impl std::fmt::Display for Report {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "move 0.5 rad / 300 ms at 0.3 N·m: overshoot {:.2} %, within {:.2} counts from 400 ms on, {} samples at 500 Hz, {} lost; 10 kB garbage in {:.2} s during a move: {} protocol errors, move ended {:.2} counts from its target, no fault; command-timeout after {} ms",
+            "move 0.5 rad / 300 ms at 0.3 N·m: overshoot {:.2} %, within {:.2} counts from 400 ms on, {} samples at 500 Hz, {} lost; 10 kB garbage in {:.2} s during a move (USART {:.0} B/s): {} protocol errors, move ended {:.2} counts from its target, no fault; target outside the window refused; {} valid frames ({} B) flooded with heartbeats armed, taken in {:.2} s, no fault; command-timeout after {} ms, {}",
             self.overshoot_pct,
             self.settled_error_counts,
             self.samples,
             self.lost_samples,
             self.garbage_secs,
+            self.usart_bytes_per_s,
             self.protocol_errors,
             self.garbage_move_error_counts,
-            self.timeout_ms
+            self.flood_frames,
+            self.flood_bytes,
+            self.flood_secs,
+            self.timeout_ms,
+            self.after_clear
         )
     }
 }
@@ -118,17 +139,30 @@ fn session(c: &mut Client, garbage_line: &mut impl Write) -> Result<Report> {
     // No heartbeat yet: the command timeout is armed by the first one (tested last).
     c.enable().map_err(err("enable"))?;
     // The load is hung on at the first driven tick: let the hold take it.
-    c.wait(Duration::from_millis(800)).map_err(err("hold"))?;
+    wait_board(c, 800)?;
 
     // First move, recorded at 500 Hz.
     c.stream_telemetry(RATE_HZ).map_err(err("telemetry"))?;
     c.wait(Duration::from_millis(50)).map_err(err("wait"))?;
+    let start = c.status().map_err(err("status"))?.tick;
     c.move_to(TARGET_URAD, MOVE_MS).map_err(err("move"))?;
-    c.wait(Duration::from_millis(1_300))
-        .map_err(err("recording"))?;
+    // 1.3 s of board time (a loaded host may run the board slower than real time).
+    let mut frames = Vec::new();
+    let t = Instant::now();
+    while frames
+        .last()
+        .is_none_or(|f: &TelemetryFrame| f.sample.tick < start + 1_300)
+    {
+        ensure!(
+            t.elapsed() < BOARD_WAIT_MAX,
+            "the board stopped sending telemetry"
+        );
+        c.wait(Duration::from_millis(50))
+            .map_err(err("recording"))?;
+        frames.extend(c.take_telemetry());
+    }
     c.stream_telemetry(0).map_err(err("telemetry off"))?;
     c.wait(Duration::from_millis(50)).map_err(err("wait"))?;
-    let frames = c.take_telemetry();
     let (overshoot_pct, settled_error_counts, samples, lost_samples) = check_move(&frames)?;
 
     // Second move with 10 kB of garbage on the line while it runs, in one burst (no
@@ -155,8 +189,8 @@ fn session(c: &mut Client, garbage_line: &mut impl Write) -> Result<Report> {
     c.wait_ready(Duration::from_secs(30), Duration::from_millis(200))
         .map_err(err("ping after the garbage"))?;
     let garbage_secs = t.elapsed().as_secs_f64();
-    c.wait(Duration::from_millis(800))
-        .map_err(err("after garbage"))?;
+    let usart_bytes_per_s = (GARBAGE_BYTES + 1) as f64 / garbage_secs;
+    wait_board(c, 800)?;
     let s = c.status().map_err(err("status after garbage"))?;
     ensure!(
         s.state == State::Enabled && s.faults.is_empty(),
@@ -185,18 +219,65 @@ fn session(c: &mut Client, garbage_line: &mut impl Write) -> Result<Report> {
         "move under garbage ended {garbage_move_error_counts:.2} counts from its target"
     );
 
-    // Heartbeats for a while, then none: command-timeout after the timeout (100 ms) + a
-    // tick.
+    // A target outside the position window (±2.5 rad) is refused, nothing moves.
+    match c.move_to(2_520_000, MOVE_MS) {
+        Err(client::Error::Refused {
+            code: ErrorCode::OutOfRange,
+            ..
+        }) => {}
+        other => bail!("a move to 2.52 rad (outside ±2.5 rad) gave {other:?}"),
+    }
+
+    // Heartbeats armed, then a flood of valid frames (status requests) for 1 s at twice
+    // what the USART takes: the heartbeats queue behind them for up to a second, and the
+    // board must take the frames themselves as link activity.
     c.set_heartbeat(true);
     c.heartbeat().map_err(err("heartbeat"))?;
-    c.wait(Duration::from_millis(300))
-        .map_err(err("heartbeats"))?;
+    c.move_to(TARGET_URAD, MOVE_MS)
+        .map_err(err("move under the flood"))?;
+    let frame = encode_to_vec(&Frame::new(60_000, Request::GetStatus))
+        .map_err(|e| anyhow!("encoding: {e}"))?;
+    let flood_frames = (2.0 * usart_bytes_per_s / frame.len() as f64).ceil() as usize;
+    let t = Instant::now();
+    for i in 0..flood_frames {
+        garbage_line.write_all(&frame).context("flooding")?;
+        // Spread over a second, as a chatty host would send them.
+        let due = Duration::from_secs_f64((i + 1) as f64 / flood_frames as f64);
+        c.wait(due.saturating_sub(t.elapsed()))
+            .map_err(err("heartbeats during the flood"))?;
+    }
+    c.wait_ready(Duration::from_secs(30), Duration::from_millis(200))
+        .map_err(err("ping after the flood"))?;
+    let flood_secs = t.elapsed().as_secs_f64();
+    wait_board(c, 300)?;
+    let s = c.status().map_err(err("status"))?;
     ensure!(
-        c.status().map_err(err("status"))?.faults.is_empty(),
-        "a fault while the heartbeats were coming"
+        s.faults.is_empty() && s.state == State::Enabled,
+        "a fault while the heartbeats were queued behind valid frames: {:?}, first {:?}",
+        s.faults,
+        s.first_fault
     );
+    // Watched through telemetry (board to host: not link activity), in board time.
+    c.stream_telemetry(50).map_err(err("telemetry"))?;
     c.set_heartbeat(false);
-    c.wait(Duration::from_millis(400)).map_err(err("timeout"))?;
+    let t = Instant::now();
+    let mut first_tick = None;
+    loop {
+        ensure!(
+            t.elapsed() < BOARD_WAIT_MAX,
+            "the board stopped sending telemetry"
+        );
+        c.wait(Duration::from_millis(20)).map_err(err("timeout"))?;
+        let frames = c.take_telemetry();
+        let Some(last) = frames.last() else { continue };
+        let first = *first_tick.get_or_insert(frames[0].sample.tick);
+        if last.sample.faults.contains(FaultCode::CommandTimeout)
+            || last.sample.tick > first + 1_000
+        {
+            break;
+        }
+    }
+    c.stream_telemetry(0).map_err(err("telemetry off"))?;
     let s = c.status().map_err(err("status after timeout"))?;
     let first = s
         .first_fault
@@ -211,17 +292,63 @@ fn session(c: &mut Client, garbage_line: &mut impl Write) -> Result<Report> {
         "command-timeout after {} ms, expected 101 (timeout 100 ms)",
         first.value
     );
-    c.clear_fault().map_err(err("clear"))?;
+    // The timeout ended the session: its condition does not persist (it used to re-latch
+    // at once, for ever). With the motor off the 0.3 N·m load falls and bends the beams
+    // beyond their envelope, a condition that does persist: then the clear must say so
+    // and clear nothing.
+    let after_clear = match c.clear_fault() {
+        Ok(()) => {
+            wait_board(c, 200)?;
+            let after = c.status().map_err(err("status after clear"))?;
+            ensure!(
+                !after.faults.contains(FaultCode::CommandTimeout),
+                "command-timeout latched again after the clear: {after:?}"
+            );
+            "cleared for good".to_string()
+        }
+        Err(client::Error::FaultPersists { record, .. }) => {
+            ensure!(
+                record.code != FaultCode::CommandTimeout,
+                "the clear found the command timeout persisting"
+            );
+            format!("the clear refused: {} persists", record.code.name())
+        }
+        Err(e) => bail!("clear: {e}"),
+    };
     Ok(Report {
         overshoot_pct,
         settled_error_counts,
         samples,
         lost_samples,
         garbage_secs,
+        usart_bytes_per_s,
+        flood_frames,
+        flood_bytes: flood_frames * frame.len(),
+        flood_secs,
         protocol_errors: s.protocol_errors,
         garbage_move_error_counts,
         timeout_ms: first.value,
+        after_clear,
     })
+}
+
+/// Longest wall-clock wait for a span of board time.
+const BOARD_WAIT_MAX: Duration = Duration::from_secs(60);
+
+/// Waits for `ticks` ms of board time (a loaded host may run the board slower than real
+/// time), handling what arrives, heartbeats going on in heartbeat mode.
+fn wait_board(c: &mut Client, ticks: u32) -> Result<()> {
+    let err = |e: client::Error| anyhow!("waiting for the board: {e}");
+    let t0 = c.status().map_err(err)?.tick;
+    let t = Instant::now();
+    loop {
+        c.wait(Duration::from_millis(20)).map_err(err)?;
+        if c.status().map_err(err)?.tick >= t0 + ticks {
+            c.clear_telemetry();
+            return Ok(());
+        }
+        ensure!(t.elapsed() < BOARD_WAIT_MAX, "the board's time stood still");
+    }
 }
 
 /// Checks the recording of the first move with the figures of `plant::metrics` (clock

@@ -1,9 +1,14 @@
 //! Running a firmware ELF on its emulated board and decoding what it logs.
+//!
+//! The command line is the client crate's ([`client::qemu::QemuCommand`]), and so is the
+//! filter that takes QEMU's own messages out of its stdout, where the firmware's defmt
+//! frames come ([`client::qemu::MessageFilter`]): the messages go to this process's
+//! stderr, the frames to the decoder intact. QEMU dies with this process.
 
-use anyhow::{bail, Context, Result};
-use std::io::Read;
+use anyhow::{anyhow, bail, Context, Result};
+use client::qemu::{MessageFilter, QemuCommand};
+use std::io::{Read, Write};
 use std::path::Path;
-use std::process::{Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
@@ -50,35 +55,50 @@ pub fn run_with_shift(
         .qemu_machine()
         .with_context(|| format!("{} is a real board, not an emulated one", board.feature()))?;
     let format = LogFormat::from_elf(elf)?;
-    let mut semihosting = String::from("enable=on,target=native,arg=vsa-firmware");
-    for arg in args {
-        if arg.contains(',') {
-            bail!("firmware argument {arg:?} may not contain ','");
-        }
-        semihosting.push_str(",arg=");
-        semihosting.push_str(arg);
-    }
-    let mut child = Command::new("qemu-system-arm")
-        .args(["-machine", machine, "-display", "none", "-monitor", "none"])
-        .args(["-serial", "null"])
-        .args(["-semihosting-config", &semihosting])
-        .args(["-icount", &format!("shift={shift},sleep=off")])
-        .arg("-kernel")
-        .arg(elf)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
+    let mut argv = vec!["vsa-firmware".to_owned()];
+    argv.extend(args.iter().cloned());
+    let line = QemuCommand {
+        qemu: "qemu-system-arm".into(),
+        machine: machine.to_owned(),
+        elf: elf.to_path_buf(),
+        argv,
+        serials: vec!["null".to_owned()],
+        icount: format!("shift={shift},sleep=off"),
+    };
+    let mut child = line
+        .command()
+        .map_err(|e| anyhow!("{e}"))?
         .spawn()
         .context("starting qemu-system-arm")?;
+    // QEMU's stderr goes to ours.
+    let relay = child.stderr.take().map(|mut pipe| {
+        std::thread::spawn(move || {
+            let mut buf = [0u8; 1024];
+            while let Ok(n) = pipe.read(&mut buf) {
+                if n == 0 || std::io::stderr().write_all(&buf[..n]).is_err() {
+                    break;
+                }
+            }
+        })
+    });
 
-    // Read QEMU's stdout (the defmt bytes) on a thread, so the wall-clock limit below
-    // can still fire if the firmware hangs.
+    // Read QEMU's stdout (the defmt bytes, QEMU's messages taken out to stderr) on a
+    // thread, so the wall-clock limit below can still fire if the firmware hangs.
     let mut stdout = child.stdout.take().context("QEMU stdout")?;
     let (tx, rx) = mpsc::channel::<Vec<u8>>();
     let reader = std::thread::spawn(move || {
+        let mut filter = MessageFilter::new();
         let mut buf = [0u8; 4096];
-        while let Ok(n) = stdout.read(&mut buf) {
-            if n == 0 || tx.send(buf[..n].to_vec()).is_err() {
+        loop {
+            let n = stdout.read(&mut buf).unwrap_or(0);
+            let (mut log, mut messages) = (Vec::new(), Vec::new());
+            if n == 0 {
+                filter.finish(&mut log, &mut messages);
+            } else {
+                filter.feed(&buf[..n], &mut log, &mut messages);
+            }
+            let _ = std::io::stderr().write_all(&messages);
+            if (!log.is_empty() && tx.send(log).is_err()) || n == 0 {
                 break;
             }
         }
@@ -110,6 +130,9 @@ pub fn run_with_shift(
     }
     let _ = reader.join();
     let status = child.wait().context("waiting for QEMU")?;
+    if let Some(r) = relay {
+        let _ = r.join();
+    }
     let exit_code = status.code().unwrap_or(-1);
     Ok(RunOutcome {
         lines,

@@ -4,12 +4,13 @@
 //! Every argument is parsed and range-checked before the connection is made (bad input
 //! exits with 2 and sends nothing); a refusal, a timeout or a lost connection exits with 1.
 
-mod args;
+mod quantities;
 pub mod serve;
 
 use std::fmt::Write as _;
 use std::io::Write as _;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Mutex, Once, PoisonError};
 use std::time::{Duration, Instant};
 
@@ -17,13 +18,15 @@ use clap::{Args, Parser, Subcommand};
 use client::protocol::{KD_MAX, KI_MAX, KP_MAX};
 use client::qemu::{self, Board, LogSink, QemuBoard};
 use client::{
-    describe_fault, fault_name, state_name, Client, FaultCode, Gains, LimitFlags, Limits,
-    Recording, Status,
+    describe_fault, fault_name, state_name, urad_text, Client, ErrorCode, FaultCode, FaultSet,
+    Gains, LimitFlags, Limits, Recording, Status,
 };
 
 use crate::error::{CliError, CliResult};
 use crate::format::trim;
-use args::show;
+use crate::output;
+use quantities::show;
+pub use quantities::LOAD_MAX_MNM;
 
 /// How to reach the board (global options, for board commands only).
 #[derive(Args, Debug, Default, Clone)]
@@ -162,7 +165,18 @@ impl ConnectArgs {
                 baud: self.baud.unwrap_or(client::DEFAULT_BAUD),
             }
         } else if let Some(t) = &self.tcp {
-            Target::Tcp(t.clone())
+            let port = t
+                .rsplit_once(':')
+                .map(|(host, port)| (host, port.parse::<u16>()));
+            match port {
+                Some((host, Ok(p))) if !host.is_empty() && p != 0 => Target::Tcp(t.clone()),
+                _ => {
+                    return Err(CliError::usage(
+                        "--tcp",
+                        format!("'{t}' is not HOST:PORT (e.g. 127.0.0.1:4000)"),
+                    ))
+                }
+            }
         } else {
             Target::Qemu(self.qemu_target()?)
         })
@@ -175,7 +189,7 @@ impl ConnectArgs {
             None => Board::QemuM4,
         };
         let load_mnm = match &self.qemu_load {
-            Some(t) => args::torque_mnm("--qemu-load", t)?,
+            Some(t) => quantities::torque_mnm("--qemu-load", t)?,
             None => 0,
         };
         Ok(QemuTarget {
@@ -189,7 +203,7 @@ impl ConnectArgs {
     /// The reply timeout.
     fn reply_timeout(&self) -> CliResult<Duration> {
         match &self.timeout {
-            Some(t) => args::duration("--timeout", t, 3600),
+            Some(t) => quantities::duration("--timeout", t, 3600),
             None => Ok(client::DEFAULT_TIMEOUT),
         }
     }
@@ -268,12 +282,27 @@ pub struct Adopted {
     pid: u32,
 }
 
+/// Set when a signal stops `vsa` (the handler is killing the boards and exiting).
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// If a signal is stopping `vsa`, waits for the handler to end the process (with 130)
+/// instead of reporting the lost connection that killing the board caused.
+pub fn park_if_interrupted() {
+    if INTERRUPTED.load(Ordering::SeqCst) {
+        loop {
+            std::thread::park();
+        }
+    }
+}
+
 /// Takes `board` into [`BOARDS`] (installing the signal handler once).
 pub fn adopt(board: QemuBoard) -> Adopted {
     static HANDLER: Once = Once::new();
     HANDLER.call_once(|| {
-        // Without the handler a signal still ends `vsa`; only the cleanup is lost.
+        // Without the handler a signal still ends `vsa`; only the cleanup is lost (QEMU
+        // dies with `vsa` anyway: see `client::qemu`).
         let _ = ctrlc::set_handler(|| {
+            INTERRUPTED.store(true, Ordering::SeqCst);
             BOARDS
                 .lock()
                 .unwrap_or_else(PoisonError::into_inner)
@@ -376,7 +405,8 @@ pub enum BoardCommand {
     Enable,
     /// Motor off
     Disable,
-    /// Clear the latched faults (the motor stays off until `enable`)
+    /// Clear the latched faults (the motor stays off until `enable`); refused, with the way
+    /// out, while a fault's condition persists
     Clear,
     /// Tell the board where the clutch sits, e.g. `clutch 3mm` (1–8 mm)
     Clutch {
@@ -392,7 +422,8 @@ pub enum BoardCommand {
     },
     /// Minimum-jerk move of the link to an absolute angle, e.g. `move 0.5rad --duration 300ms`
     Move {
-        /// Target link angle (rad, mrad, urad or deg), |·| ≤ 2π rad
+        /// Target link angle (rad, mrad, urad or deg), |·| ≤ 2.55 rad and inside the
+        /// board's position window
         #[arg(value_name = "ANGLE", allow_hyphen_values = true)]
         target: String,
         /// Duration of the move, 1 ms – 60 s
@@ -401,7 +432,8 @@ pub enum BoardCommand {
     },
     /// Reference step to an absolute link angle, e.g. `step 0.5rad`
     Step {
-        /// Target link angle (rad, mrad, urad or deg), |·| ≤ 2π rad
+        /// Target link angle (rad, mrad, urad or deg), |·| ≤ 2.55 rad and inside the
+        /// board's position window
         #[arg(value_name = "ANGLE", allow_hyphen_values = true)]
         target: String,
     },
@@ -522,29 +554,31 @@ fn plan(cmd: &BoardCommand) -> CliResult<Action> {
         BoardCommand::Enable => Action::Enable,
         BoardCommand::Disable => Action::Disable,
         BoardCommand::Clear => Action::Clear,
-        BoardCommand::Clutch { length } => Action::Clutch(args::length_um("clutch", length)?),
+        BoardCommand::Clutch { length } => Action::Clutch(quantities::length_um("clutch", length)?),
         BoardCommand::Stiffness { stiffness } => {
-            Action::Stiffness(args::stiffness_mnm_per_rad("stiffness", stiffness)?)
+            Action::Stiffness(quantities::stiffness_mnm_per_rad("stiffness", stiffness)?)
         }
         BoardCommand::Move { target, duration } => Action::Move {
-            target: args::angle_urad("move", target)?,
-            duration_ms: args::move_duration_ms("move --duration", duration)?,
+            target: quantities::angle_urad("move", target)?,
+            duration_ms: quantities::move_duration_ms("move --duration", duration)?,
         },
-        BoardCommand::Step { target } => Action::Step(args::angle_urad("step", target)?),
+        BoardCommand::Step { target } => Action::Step(quantities::angle_urad("step", target)?),
         BoardCommand::Sine {
             amplitude,
             frequency,
         } => Action::Sine {
-            amplitude: args::amplitude_urad("sine", amplitude)?,
-            frequency_mhz: args::frequency_mhz("sine --frequency", frequency)?,
+            amplitude: quantities::amplitude_urad("sine", amplitude)?,
+            frequency_mhz: quantities::frequency_mhz("sine --frequency", frequency)?,
         },
         BoardCommand::Hold => Action::Hold,
         BoardCommand::Gains(g) => Action::Gains(plan_gains(g)?),
         BoardCommand::Limits(l) => Action::Limits(plan_limits(l)?),
-        BoardCommand::Wait { duration } => Action::Wait(args::duration("wait", duration, 3600)?),
+        BoardCommand::Wait { duration } => {
+            Action::Wait(quantities::duration("wait", duration, 3600)?)
+        }
         BoardCommand::Record(r) => Action::Record {
-            span: args::duration("record --seconds", &r.seconds, 3600)?,
-            rate: args::rate_hz("record --rate", &r.rate, false)?,
+            span: quantities::duration("record --seconds", &r.seconds, 3600)?,
+            rate: quantities::rate_hz("record --rate", &r.rate, false)?,
             csv: r.csv.clone(),
         },
     })
@@ -556,9 +590,9 @@ fn plan_gains(g: &GainsArgs) -> CliResult<Option<Gains>> {
     }
     match (&g.kp, &g.ki, &g.kd) {
         (Some(kp), Some(ki), Some(kd)) => Ok(Some(Gains {
-            kp: args::gain("gains --kp", kp, KP_MAX)?,
-            ki: args::gain("gains --ki", ki, KI_MAX)?,
-            kd: args::gain("gains --kd", kd, KD_MAX)?,
+            kp: quantities::gain("gains --kp", kp, KP_MAX)?,
+            ki: quantities::gain("gains --ki", ki, KI_MAX)?,
+            kd: quantities::gain("gains --kd", kd, KD_MAX)?,
         })),
         _ => Err(CliError::usage(
             "gains",
@@ -571,27 +605,27 @@ fn plan_limits(l: &LimitsArgs) -> CliResult<Limits> {
     let d = Limits::DEFAULT;
     let lim = Limits {
         torque_margin_permille: match &l.torque_margin {
-            Some(s) => args::permille("limits --torque-margin", s)?,
+            Some(s) => quantities::permille("limits --torque-margin", s)?,
             None => d.torque_margin_permille,
         },
         current_ma: match &l.current {
-            Some(s) => args::current_ma("limits --current", s)?,
+            Some(s) => quantities::current_ma("limits --current", s)?,
             None => d.current_ma,
         },
         motor_torque_unm: match &l.motor_torque {
-            Some(s) => args::torque_unm("limits --motor-torque", s)?,
+            Some(s) => quantities::torque_unm("limits --motor-torque", s)?,
             None => d.motor_torque_unm,
         },
         duty_permille: match &l.duty {
-            Some(s) => args::permille("limits --duty", s)?,
+            Some(s) => quantities::permille("limits --duty", s)?,
             None => d.duty_permille,
         },
         position_min_urad: match &l.position_min {
-            Some(s) => args::angle_urad("limits --position-min", s)?,
+            Some(s) => quantities::angle_urad("limits --position-min", s)?,
             None => d.position_min_urad,
         },
         position_max_urad: match &l.position_max {
-            Some(s) => args::angle_urad("limits --position-max", s)?,
+            Some(s) => quantities::angle_urad("limits --position-max", s)?,
             None => d.position_max_urad,
         },
     };
@@ -638,7 +672,7 @@ fn exec(action: &Action, s: &mut Session) -> CliResult<()> {
         Action::Status => c.status().map(|st| status_text(&st)),
         Action::Enable => c.enable().map(|()| "enabled\n".to_string()),
         Action::Disable => c.disable().map(|()| "disabled\n".to_string()),
-        Action::Clear => c.clear_fault().map(|()| "faults cleared\n".to_string()),
+        Action::Clear => clear(c).map(|()| "faults cleared\n".to_string()),
         Action::Clutch(um) => c.set_clutch_length(*um).and_then(|()| {
             let st = c.status()?;
             Ok(format!(
@@ -712,19 +746,63 @@ fn exec(action: &Action, s: &mut Session) -> CliResult<()> {
             out(&text);
             Ok(())
         }
+        Err(client::Error::Refused {
+            request,
+            code: ErrorCode::OutOfRange,
+        }) if matches!(
+            action,
+            Action::Move { .. } | Action::Step(_) | Action::Sine { .. }
+        ) =>
+        {
+            Err(outside_window(s, action, request))
+        }
         Err(e) => Err(s.fail(&e)),
     }
 }
 
-fn record(s: &mut Session, span: Duration, rate: u16, csv: Option<&PathBuf>) -> CliResult<()> {
-    // Fail on an unwritable CSV before recording.
-    let file = match csv {
-        Some(p) => Some(
-            std::fs::File::create(p)
-                .map_err(|e| CliError::usage("record --csv", format!("{}: {e}", p.display())))?,
+/// Clears the faults. A condition judged at the tick before a reconfiguration (e.g. a
+/// window just widened) may still be reported once: asked again after a few ticks.
+fn clear(c: &mut Client) -> Result<(), client::Error> {
+    match c.clear_fault() {
+        Err(client::Error::FaultPersists { .. }) => {
+            c.wait(Duration::from_millis(20))?;
+            c.clear_fault()
+        }
+        r => r,
+    }
+}
+
+/// The refusal of a motion whose target lies outside the board's position window, with
+/// the window (asked from the board).
+fn outside_window(s: &mut Session, action: &Action, request: &str) -> CliError {
+    let what = match action {
+        Action::Move { target, .. } | Action::Step(target) => {
+            format!("target {}", urad_text((*target).into()))
+        }
+        Action::Sine { amplitude, .. } => format!(
+            "a sine of ±{} about the link's angle now",
+            urad_text((*amplitude).into())
         ),
-        None => None,
+        _ => "the motion".to_string(),
     };
+    match s.client.limits() {
+        Ok(l) => CliError::runtime(format!(
+            "the board refused {request}: {what} is outside the position window [{}, {}] \
+             rad (`limits --position-min/--position-max` widen it, up to ±{})",
+            show(l.position_min_urad.into(), 6),
+            show(l.position_max_urad.into(), 6),
+            urad_text(client::protocol::TARGET_MAX_URAD.into())
+        )),
+        Err(e) => s.fail(&e),
+    }
+}
+
+fn record(s: &mut Session, span: Duration, rate: u16, csv: Option<&PathBuf>) -> CliResult<()> {
+    // Fail on an unwritable CSV before recording; the file itself is only replaced once
+    // the recording is complete.
+    if let Some(p) = csv {
+        output::check_writable(p).map_err(|e| CliError::usage("record --csv", e))?;
+    }
     let bar = (span >= Duration::from_secs(1)).then(|| {
         let b = indicatif::ProgressBar::new(u64::try_from(span.as_millis()).unwrap_or(u64::MAX));
         if let Ok(style) =
@@ -745,13 +823,47 @@ fn record(s: &mut Session, span: Duration, rate: u16, csv: Option<&PathBuf>) -> 
     }
     let rec = result.map_err(|e| s.fail(&e))?;
     let mut text = record_summary(&rec);
-    if let (Some(f), Some(p)) = (file, csv) {
-        client::csv::write_csv(std::io::BufWriter::new(f), &rec.samples)
-            .map_err(|e| CliError::runtime(format!("{}: {e}", p.display())))?;
+    if let Some(p) = csv {
+        output::write_text(p, |w| client::csv::write_csv(w, &rec.samples))
+            .map_err(CliError::runtime)?;
         let _ = writeln!(text, "wrote {}", p.display());
     }
     out(&text);
-    Ok(())
+    let new = rec.new_faults();
+    if new.is_empty() {
+        Ok(())
+    } else {
+        Err(CliError::runtime(format!(
+            "fault latched during the recording: {}{}",
+            fault_list(new),
+            rec.first_fault_after
+                .as_ref()
+                .map_or_else(String::new, |f| format!(
+                    "; first fault {}",
+                    describe_fault(f)
+                ))
+        )))
+    }
+}
+
+/// Faults that latched while `action` ran: those in `after` not in `before`, named, with
+/// the board's first fault. `None` when none did.
+fn new_fault_report(before: FaultSet, after: &Status) -> Option<String> {
+    let new = FaultSet(after.faults.0 & !before.0);
+    (!new.is_empty()).then(|| {
+        format!(
+            "fault latched: {}{}; the motor is off (`status` for details, `clear` to \
+             recover)",
+            fault_list(new),
+            after
+                .first_fault
+                .as_ref()
+                .map_or_else(String::new, |f| format!(
+                    "; first fault {}",
+                    describe_fault(f)
+                ))
+        )
+    })
 }
 
 /// The summary of a recording.
@@ -880,8 +992,9 @@ pub struct ScriptArgs {
     #[arg(value_name = "COMMAND", required = true, num_args = 1..)]
     pub commands: Vec<String>,
     /// Send no heartbeats. By default the script sends one every 20 ms while it waits,
-    /// which arms the board's 100 ms command timeout: the board then latches
-    /// `command-timeout` (motor off) 100 ms after the script ends.
+    /// which arms the board's 100 ms command timeout, and disarms it when it ends (also
+    /// after a failed command); a script killed on the way leaves it armed, and the board
+    /// latches `command-timeout` (motor off) 100 ms later.
     #[arg(long)]
     pub no_heartbeat: bool,
 }
@@ -949,17 +1062,49 @@ pub fn script(a: &ScriptArgs, conn: &ConnectArgs) -> CliResult<()> {
             CliError::usage(&at(), first)
         })?;
         let action = plan(&parsed.command).map_err(|e| CliError::usage(&at(), e.to_string()))?;
+        if let Action::Record { csv: Some(p), .. } = &action {
+            output::check_writable(p)
+                .map_err(|e| CliError::usage(&at(), format!("record --csv: {e}")))?;
+        }
         actions.push((line.clone(), action));
     }
     let mut session = Session::open(conn)?;
     session.client.set_heartbeat(!a.no_heartbeat);
+    let result = run_script(&actions, &mut session);
+    if !a.no_heartbeat {
+        // The session ends here: the board's command timeout must not outlive it.
+        if let Err(e) = session.client.disarm_heartbeat() {
+            if result.is_ok() {
+                return Err(session.fail(&e));
+            }
+        }
+    }
+    result
+}
+
+/// Runs the checked lines of a script; after each, any fault that latched meanwhile ends
+/// the script with exit status 1.
+fn run_script(actions: &[(String, Action)], session: &mut Session) -> CliResult<()> {
+    let mut before = session
+        .client
+        .status()
+        .map_err(|e| session.fail(&e))?
+        .faults;
     for (i, (line, action)) in actions.iter().enumerate() {
-        out(&format!("> {line}\n"));
-        exec(action, &mut session).map_err(|e| CliError {
+        let at = |e: CliError| CliError {
             arg: Some(format!("script command {} ('{line}')", i + 1)),
             reason: e.to_string(),
             code: e.code,
-        })?;
+        };
+        out(&format!("> {line}\n"));
+        let done = exec(action, session);
+        let after = session.client.status().map_err(|e| at(session.fail(&e)))?;
+        if let Some(report) = new_fault_report(before, &after) {
+            // The command's own error (if any) is the fault's consequence.
+            return Err(at(CliError::runtime(report)));
+        }
+        done.map_err(at)?;
+        before = after.faults;
     }
     Ok(())
 }

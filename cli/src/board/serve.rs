@@ -4,12 +4,18 @@
 //! One client at a time (others wait in the listen backlog). A 0x00 goes to the board when
 //! a client connects, to flush any partial frame an earlier client left; what the board
 //! sends while no client is connected (e.g. telemetry still streaming) is dropped.
+//!
+//! Towards the board the relay behaves like a serial line: it passes at most
+//! [`LINE_RATE`] bytes per second (with a burst of [`LINE_BURST`]) and drops the bytes
+//! beyond, counting them (reported when the client disconnects). Without that, a client
+//! that sends faster than the emulated USART takes fills the socket buffers between here
+//! and QEMU with minutes of backlog, during which the board answers nothing.
 
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use clap::Args;
 use client::qemu::{QemuBoard, QemuOptions, READY_PING_INTERVAL, READY_TIMEOUT};
@@ -17,6 +23,50 @@ use client::Client;
 
 use super::ConnectArgs;
 use crate::error::{CliError, CliResult};
+
+/// Bytes per second the relay passes to the board: below what the emulated USART took on
+/// the most loaded machine measured (1 158 B/s, `cargo xtask e2e` at a load of 13 on 2
+/// cores; 8–11 kB/s on a quiet one, see docs/heartbeat-and-recovery.md), so that the board
+/// keeps up with the line and nothing queues in front of it. Twice what a `vsa script`
+/// sends (a 9–11-byte heartbeat every 20 ms, one request at a time).
+pub const LINE_RATE: f64 = 1_000.0;
+
+/// Bytes the relay passes at once after a quiet spell: less than the firmware's receive
+/// queue (255 bytes), so a burst never overflows it.
+pub const LINE_BURST: f64 = 192.0;
+
+/// A token bucket at [`LINE_RATE`] holding at most [`LINE_BURST`] bytes.
+#[derive(Debug)]
+pub struct Line {
+    tokens: f64,
+    last: Instant,
+    /// Bytes dropped because they came faster than the line takes them.
+    pub dropped: u64,
+}
+
+impl Line {
+    /// A full bucket.
+    #[must_use]
+    pub fn new(now: Instant) -> Line {
+        Line {
+            tokens: LINE_BURST,
+            last: now,
+            dropped: 0,
+        }
+    }
+
+    /// How many of `n` bytes arriving at `now` the line takes (the first ones); the rest
+    /// are dropped and counted.
+    pub fn admit(&mut self, n: usize, now: Instant) -> usize {
+        let dt = now.saturating_duration_since(self.last).as_secs_f64();
+        self.last = now;
+        self.tokens = (self.tokens + dt * LINE_RATE).min(LINE_BURST);
+        let take = (self.tokens.floor() as usize).min(n);
+        self.tokens -= take as f64;
+        self.dropped += (n - take) as u64;
+        take
+    }
+}
 
 /// Arguments of `vsa serve-qemu`.
 #[derive(Args, Debug)]
@@ -137,11 +187,13 @@ fn relay(
         if to.write_all(&[0]).is_err() {
             return Ok(());
         }
+        let mut line = Line::new(Instant::now());
         loop {
             match client.read(&mut buf) {
                 Ok(0) => break,
                 Ok(n) => {
-                    if to.write_all(buf.get(..n).unwrap_or_default()).is_err() {
+                    let take = line.admit(n, Instant::now());
+                    if to.write_all(buf.get(..take).unwrap_or_default()).is_err() {
                         return Ok(());
                     }
                 }
@@ -159,7 +211,40 @@ fn relay(
             }
         }
         *current.lock().unwrap_or_else(PoisonError::into_inner) = None;
-        eprintln!("client {peer} disconnected");
+        if line.dropped > 0 {
+            eprintln!(
+                "client {peer} disconnected; {} bytes beyond the line rate ({LINE_RATE} B/s) \
+                 dropped",
+                line.dropped
+            );
+        } else {
+            eprintln!("client {peer} disconnected");
+        }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_line_passes_its_rate_and_drops_the_rest() {
+        let t0 = Instant::now();
+        let mut line = Line::new(t0);
+        // A 5 s flood of 100 kB/s, in 1 kB reads every 10 ms.
+        let mut passed = 0;
+        for i in 1..=500 {
+            passed += line.admit(1_000, t0 + Duration::from_millis(10 * i));
+        }
+        // The burst, then the rate for the 4.99 s after the first read.
+        let expected = LINE_BURST + 4.99 * LINE_RATE;
+        assert!(
+            (passed as f64 - expected).abs() <= 1.0,
+            "{passed} vs {expected}"
+        );
+        assert_eq!(line.dropped, 500_000 - passed as u64);
+        // After a quiet second a frame passes whole.
+        assert_eq!(line.admit(57, t0 + Duration::from_secs(6)), 57);
+    }
 }

@@ -150,6 +150,8 @@ pub fn request() -> impl Strategy<Value = Request> {
         prop_oneof![Just(0u16), edge_u16(10, 500)]
             .prop_map(|rate_hz| Request::StreamTelemetry { rate_hz }),
         Just(Request::Heartbeat),
+        Just(Request::DisarmHeartbeat),
+        Just(Request::GetLimits),
     ]
 }
 
@@ -172,6 +174,8 @@ pub fn request_index(r: &Request) -> u32 {
         Request::SetLimits(_) => 13,
         Request::StreamTelemetry { .. } => 14,
         Request::Heartbeat => 15,
+        Request::DisarmHeartbeat => 16,
+        Request::GetLimits => 17,
     }
 }
 
@@ -183,6 +187,8 @@ pub fn reply_index(r: &Reply) -> u32 {
         Reply::Status(_) => 2,
         Reply::ClutchToSet { .. } => 3,
         Reply::Telemetry(_) => 4,
+        Reply::Limits(_) => 5,
+        Reply::FaultPersists(_) => 6,
     }
 }
 
@@ -279,6 +285,10 @@ pub fn reply() -> impl Strategy<Value = Reply> {
         status().prop_map(Reply::Status),
         any::<u32>().prop_map(|length_um| Reply::ClutchToSet { length_um }),
         sample().prop_map(Reply::Telemetry),
+        limits().prop_map(Reply::Limits),
+        (fault_code(), any::<i32>(), any::<u32>()).prop_map(|(code, value, tick)| {
+            Reply::FaultPersists(FaultRecord { code, value, tick })
+        }),
     ]
 }
 
@@ -301,6 +311,8 @@ pub enum Call {
     SetLimits(Limits),
     TelemetryRate(u16),
     Heartbeat,
+    DisarmHeartbeat,
+    Limits,
     Status,
 }
 
@@ -319,6 +331,12 @@ pub struct MockDevice {
     pub limits: Limits,
     pub rate_hz: u16,
     pub heartbeats: u32,
+    /// Whether a heartbeat armed the timeout (a disarm ends it).
+    pub armed: bool,
+    /// Link activity seen while armed.
+    pub activity: u32,
+    /// What [`Device::persisting_fault`] answers.
+    pub persisting: Option<FaultRecord>,
 }
 
 impl Default for MockDevice {
@@ -334,6 +352,9 @@ impl Default for MockDevice {
             limits: Limits::DEFAULT,
             rate_hz: 0,
             heartbeats: 0,
+            armed: false,
+            activity: 0,
+            persisting: None,
         }
     }
 }
@@ -476,6 +497,27 @@ impl Device for MockDevice {
     fn heartbeat(&mut self) {
         self.calls.push(Call::Heartbeat);
         self.heartbeats += 1;
+        self.armed = true;
+    }
+
+    fn disarm_heartbeat(&mut self) {
+        self.calls.push(Call::DisarmHeartbeat);
+        self.armed = false;
+    }
+
+    fn link_activity(&mut self) {
+        if self.armed {
+            self.activity += 1;
+        }
+    }
+
+    fn limits(&mut self) -> Limits {
+        self.calls.push(Call::Limits);
+        self.limits
+    }
+
+    fn persisting_fault(&mut self) -> Option<FaultRecord> {
+        self.persisting
     }
 
     fn status(&mut self) -> Status {
@@ -524,6 +566,8 @@ pub fn expected_call(r: &Request) -> Option<Call> {
         Request::SetLimits(l) => Call::SetLimits(l),
         Request::StreamTelemetry { rate_hz } => Call::TelemetryRate(rate_hz),
         Request::Heartbeat => Call::Heartbeat,
+        Request::DisarmHeartbeat => Call::DisarmHeartbeat,
+        Request::GetLimits => Call::Limits,
     })
 }
 

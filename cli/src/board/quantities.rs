@@ -50,7 +50,8 @@ fn to_i32(v: i64) -> i32 {
     i32::try_from(v).unwrap_or(if v < 0 { i32::MIN } else { i32::MAX })
 }
 
-/// A link angle in µrad, |·| ≤ 2π rad. Accepts rad, mrad, urad, and deg (or °).
+/// A link angle in µrad, |·| ≤ 2.55 rad (what the gear pot measures,
+/// [`TARGET_MAX_URAD`]). Accepts rad, mrad, urad, and deg (or °).
 pub fn angle_urad(arg: &str, s: &str) -> CliResult<i32> {
     angle(arg, s, i64::from(TARGET_MAX_URAD), true)
 }
@@ -167,9 +168,14 @@ pub fn torque_unm(arg: &str, s: &str) -> CliResult<u32> {
     .map(to_u32)
 }
 
-/// The emulated board's link load in mN·m, within ±2 N·m (the firmware's `--load-mnm`).
+/// Largest |constant load| on the link, mN·m: the emulated board's (`--load-mnm`,
+/// |N| ≤ 2000) and `vsa simulate`'s. Beyond what the motor (1.5 N·m stall) can hold.
+pub const LOAD_MAX_MNM: i32 = 2_000;
+
+/// The emulated board's link load in mN·m, within ±[`LOAD_MAX_MNM`].
 pub fn torque_mnm(arg: &str, s: &str) -> CliResult<i32> {
-    scaled(arg, s, Kind::Torque, 3, -2_000, 2_000).map(to_i32)
+    let max = i64::from(LOAD_MAX_MNM);
+    scaled(arg, s, Kind::Torque, 3, -max, max).map(to_i32)
 }
 
 /// A fraction in ‰, (0, 1]: `0.85`, `85%` or `850‰`.
@@ -253,10 +259,10 @@ mod tests {
         assert_eq!(angle_urad("x", "-0.5 rad").unwrap(), -500_000);
         assert_eq!(angle_urad("x", "90deg").unwrap(), 1_570_796);
         assert_eq!(angle_urad("x", "-30°").unwrap(), -523_599);
-        assert_eq!(angle_urad("x", "6.283185rad").unwrap(), 6_283_185);
+        assert_eq!(angle_urad("x", "2.55rad").unwrap(), 2_550_000);
         assert_eq!(
-            reason(angle_urad("move", "7rad")),
-            "move: 7 rad is out of range [-6.283185, 6.283185] rad"
+            reason(angle_urad("move", "2.550001rad")),
+            "move: 2.550001 rad is out of range [-2.55, 2.55] rad"
         );
         assert!(reason(angle_urad("x", "400deg")).contains("out of range"));
         assert!(reason(angle_urad("x", "0.5")).contains("no unit"));
