@@ -92,7 +92,7 @@ fn bad_values_are_rejected_before_connecting() {
         ),
         (
             &["move", "7rad"],
-            "move: 7 rad is out of range [-2.55, 2.55] rad",
+            "move: 7 rad is out of range [-2.54, 2.54] rad",
         ),
         (&["move", "-7rad"], "move: -7 rad is out of range"),
         (

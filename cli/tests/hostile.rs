@@ -71,12 +71,12 @@ fn argument_attacks_exit_2_naming_the_argument() {
     // Beyond what the gear pot measures: refused before anything is sent.
     usage_error(
         &tcp(&["move", "2.6rad"]),
-        "move: 2.6 rad is out of range [-2.55, 2.55] rad",
+        "move: 2.6 rad is out of range [-2.54, 2.54] rad",
     );
     usage_error(&tcp(&["step", "-150deg"]), "step: -150 deg is out of range");
     usage_error(
         &tcp(&["limits", "--position-max", "3rad"]),
-        "limits --position-max: 3 rad is out of range [-2.55, 2.55] rad",
+        "limits --position-max: 3 rad is out of range [-2.54, 2.54] rad",
     );
     usage_error(
         &vsa(&["--tcp", "localhost", "status"]),
@@ -295,9 +295,9 @@ fn a_target_outside_the_window_is_refused_with_the_window() {
     assert_eq!(
         e,
         "error: the board refused move: target 2.52 rad is outside the position window \
-         [-2.5, 2.5] rad (`limits --position-min/--position-max` widen it, up to ±2.55 rad)\n"
+         [-2.5, 2.5] rad (`limits --position-min/--position-max` widen it, up to ±2.54 rad)\n"
     );
-    ok(&board, &["limits", "--position-max", "2.55rad"]);
+    ok(&board, &["limits", "--position-max", "2.54rad"]);
     ok(&board, &["move", "2.52rad"]);
 }
 

@@ -155,15 +155,15 @@ pub const CLUTCH_MAX_UM: u32 = 8_000;
 /// model's inverse L(k) lands in the clutch range is the device's check.
 pub const STIFFNESS_MIN_MNM_PER_RAD: u32 = 1;
 
-/// Largest |target| of a motion command and |end| of the position window, µrad: 2.55 rad.
+/// Largest |target| of a motion command and |end| of the position window, µrad: 2.54 rad.
 ///
 /// What the sensors can measure: the gear pot spans 300° in 1024 counts and saturates 511
 /// counts from its centre, at ±2.613 rad of gear angle; beyond that a measured deflection
 /// is wrong and the supervisor latches `beam-overload` for as long as the link stays out
-/// there. 2.55 rad leaves 63 mrad for the overshoot and the beams' deflection envelope
-/// (φ_b + θ_cap(L), largest at L = 8 mm; checked by the service's tests). A device also
-/// refuses a target outside its configured position window.
-pub const TARGET_MAX_URAD: u32 = 2_550_000;
+/// there. 2.54 rad leaves 73 mrad for the overshoot and the beams' deflection envelope
+/// (φ_b + θ_cap(L) + the pot's calibration tolerance: 67 mrad at L = 8 mm; checked by the
+/// service's tests). A device also refuses a target outside its configured position window.
+pub const TARGET_MAX_URAD: u32 = 2_540_000;
 
 /// Move duration range, ms: 1 ms – 60 s.
 pub const MOVE_DURATION_MIN_MS: u32 = 1;

@@ -21,9 +21,9 @@ use protocol::{
 /// Independent statement of the documented request ranges (the issue and the crate docs),
 /// to check `Request::validate` against.
 fn in_range(r: &Request) -> bool {
-    // 2.55 rad: inside the gear pot's measurable ±2.613 rad (300° over 1024 counts, 511 from
+    // 2.54 rad: inside the gear pot's measurable ±2.613 rad (300° over 1024 counts, 511 from
     // the centre).
-    const MEASURABLE_URAD: i64 = 2_550_000;
+    const MEASURABLE_URAD: i64 = 2_540_000;
     let angle = |a: i32| i64::from(a).abs() <= MEASURABLE_URAD;
     match *r {
         Request::SetClutchLength { length_um } => (1_000..=8_000).contains(&length_um),

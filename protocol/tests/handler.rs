@@ -252,11 +252,11 @@ fn range_boundaries() {
         stiffness_mnm_per_rad: 0,
     });
     ok(R::Move {
-        target_urad: 2_550_000,
+        target_urad: 2_540_000,
         duration_ms: 1,
     });
     ok(R::Move {
-        target_urad: -2_550_000,
+        target_urad: -2_540_000,
         duration_ms: 60_000,
     });
     bad(R::Move {
@@ -276,7 +276,7 @@ fn range_boundaries() {
         duration_ms: 60_001,
     });
     ok(R::Step {
-        target_urad: -2_550_000,
+        target_urad: -2_540_000,
     });
     bad(R::Step {
         target_urad: -2_550_001,

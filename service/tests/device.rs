@@ -298,7 +298,7 @@ fn a_clear_while_the_link_is_outside_the_window_clears_nothing_and_says_where() 
     assert_eq!(b.status().state, State::Faulted, "nothing cleared");
     // The way out: widen the window; after a tick the clear holds and enable works.
     let wide = Limits {
-        position_max_urad: 2_550_000,
+        position_max_urad: 2_540_000,
         ..Limits::DEFAULT
     };
     assert_eq!(b.ask(Request::SetLimits(wide)), Reply::Ok);

@@ -422,7 +422,7 @@ pub enum BoardCommand {
     },
     /// Minimum-jerk move of the link to an absolute angle, e.g. `move 0.5rad --duration 300ms`
     Move {
-        /// Target link angle (rad, mrad, urad or deg), |·| ≤ 2.55 rad and inside the
+        /// Target link angle (rad, mrad, urad or deg), |·| ≤ 2.54 rad and inside the
         /// board's position window
         #[arg(value_name = "ANGLE", allow_hyphen_values = true)]
         target: String,
@@ -432,7 +432,7 @@ pub enum BoardCommand {
     },
     /// Reference step to an absolute link angle, e.g. `step 0.5rad`
     Step {
-        /// Target link angle (rad, mrad, urad or deg), |·| ≤ 2.55 rad and inside the
+        /// Target link angle (rad, mrad, urad or deg), |·| ≤ 2.54 rad and inside the
         /// board's position window
         #[arg(value_name = "ANGLE", allow_hyphen_values = true)]
         target: String,

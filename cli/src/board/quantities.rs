@@ -50,7 +50,7 @@ fn to_i32(v: i64) -> i32 {
     i32::try_from(v).unwrap_or(if v < 0 { i32::MIN } else { i32::MAX })
 }
 
-/// A link angle in µrad, |·| ≤ 2.55 rad (what the gear pot measures,
+/// A link angle in µrad, |·| ≤ 2.54 rad (what the gear pot measures,
 /// [`TARGET_MAX_URAD`]). Accepts rad, mrad, urad, and deg (or °).
 pub fn angle_urad(arg: &str, s: &str) -> CliResult<i32> {
     angle(arg, s, i64::from(TARGET_MAX_URAD), true)
@@ -259,10 +259,10 @@ mod tests {
         assert_eq!(angle_urad("x", "-0.5 rad").unwrap(), -500_000);
         assert_eq!(angle_urad("x", "90deg").unwrap(), 1_570_796);
         assert_eq!(angle_urad("x", "-30°").unwrap(), -523_599);
-        assert_eq!(angle_urad("x", "2.55rad").unwrap(), 2_550_000);
+        assert_eq!(angle_urad("x", "2.54rad").unwrap(), 2_540_000);
         assert_eq!(
-            reason(angle_urad("move", "2.550001rad")),
-            "move: 2.550001 rad is out of range [-2.55, 2.55] rad"
+            reason(angle_urad("move", "2.540001rad")),
+            "move: 2.540001 rad is out of range [-2.54, 2.54] rad"
         );
         assert!(reason(angle_urad("x", "400deg")).contains("out of range"));
         assert!(reason(angle_urad("x", "0.5")).contains("no unit"));

@@ -26,7 +26,7 @@ use crate::error::{CliError, CliResult};
 
 /// Bytes per second the relay passes to the board: below what the emulated USART took on
 /// the most loaded machine measured (1 158 B/s, `cargo xtask e2e` at a load of 13 on 2
-/// cores; 8–11 kB/s on a quiet one, see docs/heartbeat-and-recovery.md), so that the board
+/// cores; 8–11 kB/s on a quiet one, see docs/protocol.md, "The heartbeat rule"), so that the board
 /// keeps up with the line and nothing queues in front of it. Twice what a `vsa script`
 /// sends (a 9–11-byte heartbeat every 20 ms, one request at a time).
 pub const LINE_RATE: f64 = 1_000.0;
