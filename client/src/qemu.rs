@@ -143,7 +143,8 @@ pub fn elf_path(root: &Path, board: Board) -> PathBuf {
 }
 
 /// Builds the firmware for `board` in the workspace at `root` (`cargo build --release -p
-/// vsa-firmware --target <triple> --no-default-features --features <board>`; cargo's
+/// vsa-firmware --bin vsa-firmware --target <triple> --no-default-features --features
+/// <board>`: only the program that serves the protocol, not the benchmark images; cargo's
 /// progress goes to this process's stderr) and returns the ELF's path.
 ///
 /// # Errors
@@ -152,7 +153,15 @@ pub fn build_firmware(root: &Path, board: Board) -> Result<PathBuf> {
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let status = Command::new(&cargo)
         .current_dir(root)
-        .args(["build", "--release", "-p", "vsa-firmware", "--target"])
+        .args([
+            "build",
+            "--release",
+            "-p",
+            "vsa-firmware",
+            "--bin",
+            "vsa-firmware",
+        ])
+        .arg("--target")
         .arg(board.target())
         .args(["--no-default-features", "--features", board.name()])
         .stdin(Stdio::null())
