@@ -918,25 +918,20 @@ more (the achievable region lies below it)"
     write_atomic(path, |tmp| fig.write_file(tmp, false))
 }
 
-/// Writes `path` through `write` into a temporary file beside it (same extension, so the
-/// image format follows) and renames it into place: a failed run leaves nothing half
-/// written. Shared with `vsa advise`.
+/// Writes a figure to `path` whole or not at all ([`crate::output::write_atomically`]); an
+/// image format the writer does not know is a usage error of `--figure`. Shared with
+/// `vsa advise`.
 pub fn write_atomic(
     path: &std::path::Path,
     write: impl FnOnce(&std::path::Path) -> Result<(), String>,
 ) -> CliResult<()> {
-    let name = path.file_name().and_then(|n| n.to_str()).ok_or_else(|| {
-        CliError::usage("--figure", format!("{}: not a file name", path.display()))
-    })?;
-    let tmp = path
-        .with_file_name(format!(".{name}.partial.{}", std::process::id()))
-        .with_extension(path.extension().unwrap_or_default());
-    let result = write(&tmp)
-        .and_then(|()| std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display())));
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+    if path.file_name().and_then(|n| n.to_str()).is_none() {
+        return Err(CliError::usage(
+            "--figure",
+            format!("{}: not a file name", path.display()),
+        ));
     }
-    result.map_err(|e| {
+    crate::output::write_atomically(path, write).map_err(|e| {
         if e.contains("unknown image format") {
             CliError::usage("--figure", e)
         } else {

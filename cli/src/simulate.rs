@@ -395,29 +395,30 @@ pub fn run(args: &SimulateArgs) -> Result<(), String> {
         format!("{arg}: {e}")
     })?;
     // The CSV goes to a temporary file, renamed over `--csv` only if the run succeeds.
-    let tmp = args.csv.as_deref().map(output::temporary_path);
-    let mut writer = match (&args.csv, &tmp) {
-        (Some(path), Some(tmp)) => {
-            let f = File::create(tmp)
-                .map_err(|e| format!("--csv: cannot write {}: {e}", path.display()))?;
-            let mut w = BufWriter::new(f);
-            writeln!(w, "{CSV_HEADER}").map_err(|e| format!("--csv: {}: {e}", path.display()))?;
-            Some(w)
+    let m = match &args.csv {
+        None => run_with(&sc, &mut None)?,
+        Some(path) => {
+            let mut metrics = Err(String::new());
+            output::write_atomically(path, |tmp| {
+                let f = File::create(tmp)
+                    .map_err(|e| format!("--csv: cannot write {}: {e}", path.display()))?;
+                let mut w = BufWriter::new(f);
+                writeln!(w, "{CSV_HEADER}")
+                    .map_err(|e| format!("--csv: {}: {e}", path.display()))?;
+                metrics = run_with(&sc, &mut Some(w));
+                metrics.as_ref().map(drop).map_err(Clone::clone)
+            })
+            // A run that went through and a rename that did not: name the argument.
+            .map_err(|e| {
+                if metrics.is_ok() {
+                    format!("--csv: {e}")
+                } else {
+                    e
+                }
+            })?;
+            metrics?
         }
-        _ => None,
     };
-    let result = run_with(&sc, &mut writer);
-    drop(writer);
-    if let (Some(path), Some(tmp)) = (&args.csv, &tmp) {
-        match &result {
-            Ok(_) => std::fs::rename(tmp, path)
-                .map_err(|e| format!("--csv: cannot write {}: {e}", path.display()))?,
-            Err(_) => {
-                let _ = std::fs::remove_file(tmp);
-            }
-        }
-    }
-    let m = result?;
 
     if args.json {
         println!("{}", metrics_json(&m, period_s.is_some()));
