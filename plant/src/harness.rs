@@ -498,19 +498,18 @@ where
     );
     let (mut after_fault, mut before_fault) = (0.0f64, 0.0f64);
     for tick in 0..rec.total_ticks() {
-        if tick == sc.settle_ticks {
-            // A fault latched during the hold refuses the command; the run goes on (its
-            // metrics show the fault).
-            match servo.command(sc.command) {
-                Ok(()) | Err(ServoError::Faulted) => {}
-                Err(e) => return Err(e),
-            }
-        } else if let Some(cmd) = tick
-            .checked_sub(sc.settle_ticks)
-            .filter(|&n| n > 0)
-            .and_then(&mut script)
-        {
-            match servo.command(cmd) {
+        // The scenario's command at `settle_ticks`, then the script's (if any).
+        let command = if tick == sc.settle_ticks {
+            Some(sc.command)
+        } else {
+            tick.checked_sub(sc.settle_ticks)
+                .filter(|&n| n > 0)
+                .and_then(&mut script)
+        };
+        if let Some(command) = command {
+            // A fault latched earlier refuses the command; the run goes on (its metrics
+            // show the fault).
+            match servo.command(command) {
                 Ok(()) | Err(ServoError::Faulted) => {}
                 Err(e) => return Err(e),
             }
