@@ -14,6 +14,7 @@ mod checks;
 mod cmd;
 mod defmt_log;
 mod e2e;
+mod fail_safe;
 mod firmware;
 mod flash;
 mod qemu;

@@ -9,7 +9,7 @@ use crate::board::Board;
 use crate::checks::Expected;
 use crate::cmd::{cargo, describe};
 use crate::e2e;
-use crate::{bench, checks, firmware, qemu, scenarios, setup};
+use crate::{bench, checks, fail_safe, firmware, qemu, scenarios, setup};
 use plant::scenario::ScenarioId;
 
 /// Control tick at which the panic-handler test panics on purpose.
@@ -131,7 +131,10 @@ pub fn run() -> Result<bool> {
         let result = qemu::run(*board, elf, &args, wall_limit(3), |line| {
             println!("[{} panic test] {line}", board.feature())
         })
-        .and_then(|outcome| checks::check(&outcome, &Expected::PanicAt(PANIC_TICK)));
+        .and_then(|outcome| {
+            checks::check(&outcome, &Expected::PanicAt(PANIC_TICK))?;
+            fail_safe::check_bridge_off(&outcome)
+        });
         tally.record(&format!("panic handler on {}", board.feature()), result);
     }
 
