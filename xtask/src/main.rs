@@ -20,6 +20,7 @@ mod flash;
 mod qemu;
 mod results;
 mod scenarios;
+mod sensors;
 mod setup;
 mod test;
 

@@ -9,7 +9,7 @@ use crate::board::Board;
 use crate::checks::Expected;
 use crate::cmd::{cargo, describe};
 use crate::e2e;
-use crate::{bench, checks, fail_safe, firmware, qemu, scenarios, setup};
+use crate::{bench, checks, fail_safe, firmware, qemu, scenarios, sensors, setup};
 use plant::scenario::ScenarioId;
 
 /// Control tick at which the panic-handler test panics on purpose.
@@ -148,6 +148,12 @@ pub fn run() -> Result<bool> {
             &format!("host link end-to-end on {}", board.feature()),
             result,
         );
+    }
+
+    for (board, elf) in elfs.iter().filter(|(b, _)| b.qemu_machine().is_some()) {
+        let result =
+            sensors::check(*board, elf).map(|r| println!("[{} sensors] {r}", board.feature()));
+        tally.record(&format!("vsa sensors on {}", board.feature()), result);
     }
 
     if !tally.failures.is_empty() {
