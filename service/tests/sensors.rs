@@ -2,48 +2,20 @@
 //! the protocol, and an open-loop nudge that turns the motor, and so the gear pot and the
 //! link encoder, in the direction of its duty, then stops by itself.
 
-use model::control::Config;
-use model::servo::{Servo, TickInput};
-use model::supervisor::SupervisorConfig;
-use model::{Design, Length};
-use plant::scenario::BridgeLines;
-use plant::served::ServedActuator;
-use protocol::{ErrorCode, Frame, Handler, RawSensors, Reply, Request, NUDGE_DUTY_MAX_PERMILLE};
-use service::{Actuator, Service};
+use protocol::{ErrorCode, RawSensors, Reply, Request, NUDGE_DUTY_MAX_PERMILLE};
 
+mod closed_loop;
 mod common;
-use common::Cell;
 
-struct Bench {
-    actuator: Cell,
-    service: Service,
-    handler: Handler,
-    world: ServedActuator,
-    lines: BridgeLines,
-    seq: u16,
-}
+struct Bench(closed_loop::Bench);
 
 impl Bench {
     fn new() -> Bench {
-        let design = Design::paper();
-        let config = Config::paper(Length::from_int(3));
-        let sup = SupervisorConfig::DEFAULT;
-        Bench {
-            actuator: Cell(Actuator::new(Servo::new(&design, &config, &sup).unwrap())),
-            service: Service::new(design, config, sup),
-            handler: Handler::new(),
-            world: ServedActuator::new(design, &config, 0.0).unwrap(),
-            lines: BridgeLines::default(),
-            seq: 0,
-        }
+        Bench(closed_loop::Bench::new(0.0))
     }
 
     fn ask(&mut self, req: Request) -> Reply {
-        self.seq += 1;
-        let mut dev = self.service.device(&mut self.actuator);
-        self.handler
-            .handle_request(Frame::new(self.seq, req), &mut dev)
-            .body
+        self.0.ask(req)
     }
 
     fn sensors(&mut self) -> RawSensors {
@@ -53,20 +25,9 @@ impl Bench {
         }
     }
 
-    /// Ticks as the firmware does: readings → servo → the actuator's bridge demand.
     fn run(&mut self, ticks: u32) {
         for _ in 0..ticks {
-            let a = &mut self.actuator.0;
-            let r = self.world.tick(self.lines, a.servo.controller().schedule());
-            let input = TickInput {
-                link_encoder: r.link_encoder,
-                gear_pot: Some(r.gear_pot),
-                current_adc: r.current_adc,
-                read_error: None,
-            };
-            let out = a.servo.tick(&input);
-            self.lines = BridgeLines::for_demand(a.open_loop.demand(&input, &out));
-            assert!(out.new_fault.is_none(), "fault {:?}", out.new_fault);
+            self.0.step();
         }
     }
 }
