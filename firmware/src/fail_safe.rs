@@ -11,6 +11,26 @@ use crate::board::{self, BridgeOutputs};
 use core::sync::atomic::{AtomicBool, Ordering};
 use cortex_m_rt::{exception, ExceptionFrame};
 
+/// A failure injected on purpose in a control tick (`--inject-panic-at-tick N`,
+/// `--inject-hardfault-at-tick N`), to prove these handlers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Injection {
+    /// The control tick (1-based).
+    pub tick: u32,
+    /// A HardFault (an undefined instruction) rather than a panic.
+    pub hardfault: bool,
+}
+
+/// Panics, or faults, if `injection` is for `tick`.
+#[inline]
+pub fn inject(injection: Option<Injection>, tick: u32) {
+    match injection {
+        Some(i) if i.tick == tick && i.hardfault => cortex_m::asm::udf(),
+        Some(i) if i.tick == tick => panic!("injected panic at tick {}", tick),
+        _ => {}
+    }
+}
+
 /// Set by the first handler to report: a second entry (a panic inside the logger, the
 /// HardFault that ends a panic on the real board) skips the report, since logging again
 /// could fault again.

@@ -1,11 +1,21 @@
-//! The panic test's check of the fail-safe: the firmware's panic handler must force the
-//! H-bridge off before it reports, so the log of an injected panic must show the bridge's
-//! outputs after the handler (enable low, duty 0) and before it (driving, or the test
-//! would prove nothing), ahead of the panic message.
+//! The fail-safe's checks: the firmware's panic and HardFault handlers must force the
+//! H-bridge off before they report, so the log of an injected panic or HardFault must show
+//! the bridge's outputs after the handler (enable low, duty 0) and before it (driving, or
+//! the test would prove nothing), ahead of the handler's report.
 
-use anyhow::{bail, Context, Result};
+use std::path::Path;
 
-use crate::qemu::RunOutcome;
+use anyhow::{bail, ensure, Context, Result};
+
+use crate::board::Board;
+use crate::qemu::{self, RunOutcome};
+use crate::test::wall_limit;
+
+/// What the panic handler reports after the fail-safe line.
+pub const PANIC_REPORT: &str = "panic: ";
+
+/// What the HardFault handler reports after the fail-safe line.
+const HARDFAULT_REPORT: &str = "HardFault at pc ";
 
 /// What the firmware's fail-safe logs (`firmware/src/fail_safe.rs`), before the values.
 const MARKER: &str = "bridge forced off: ";
@@ -28,8 +38,30 @@ fn outputs(s: &str) -> Option<Outputs> {
     })
 }
 
-/// Checks the fail-safe line of an injected panic's log.
-pub fn check_bridge_off(outcome: &RunOutcome) -> Result<()> {
+/// Runs `elf` on `board` with a HardFault injected at control tick `tick`: the run must
+/// fail, with the fail-safe's line and then the HardFault's report last.
+pub fn hardfault_test(board: Board, elf: &Path, tick: u32) -> Result<()> {
+    let args = vec!["--inject-hardfault-at-tick".to_owned(), tick.to_string()];
+    let outcome = qemu::run(board, elf, &args, wall_limit(3), |line| {
+        println!("[{} HardFault test] {line}", board.feature())
+    })?;
+    ensure!(
+        outcome.exit_code != 0,
+        "the run passed despite the HardFault"
+    );
+    ensure!(
+        outcome
+            .lines
+            .last()
+            .is_some_and(|l| l.contains(HARDFAULT_REPORT)),
+        "the last line is not the HardFault's report: {:?}",
+        outcome.lines.last()
+    );
+    check_bridge_off(&outcome, HARDFAULT_REPORT)
+}
+
+/// Checks the fail-safe line of an injected failure's log, followed by `report`.
+pub fn check_bridge_off(outcome: &RunOutcome, report: &str) -> Result<()> {
     let lines = &outcome.lines;
     let at = lines
         .iter()
@@ -50,8 +82,8 @@ pub fn check_bridge_off(outcome: &RunOutcome) -> Result<()> {
             "the bridge was not driving when the panic came ({before:?}): the test proves nothing"
         );
     }
-    if !lines[at..].iter().skip(1).any(|l| l.contains("panic: ")) {
-        bail!("the panic message does not follow the fail-safe line");
+    if !lines[at..].iter().skip(1).any(|l| l.contains(report)) {
+        bail!("the handler's report (`{report}`) does not follow the fail-safe line");
     }
     Ok(())
 }
@@ -73,17 +105,19 @@ mod tests {
 
     #[test]
     fn the_bridge_must_go_from_driving_to_off_before_the_report() {
-        assert!(check_bridge_off(&outcome(&[OFF, PANIC])).is_ok());
-        assert!(check_bridge_off(&outcome(&[PANIC])).is_err());
-        assert!(check_bridge_off(&outcome(&[PANIC, OFF])).is_err());
+        let check = |lines: &[&str]| check_bridge_off(&outcome(lines), PANIC_REPORT);
+        assert!(check(&[OFF, PANIC]).is_ok());
+        assert!(check(&[PANIC]).is_err());
+        assert!(check(&[PANIC, OFF]).is_err());
+        assert!(check_bridge_off(&outcome(&[OFF, PANIC]), HARDFAULT_REPORT).is_err());
         let still_on = OFF.replace("enable false, duty 0", "enable true, duty 197");
-        assert!(check_bridge_off(&outcome(&[&still_on, PANIC])).is_err());
+        assert!(check(&[&still_on, PANIC]).is_err());
         let pwm_on = OFF.replace("enable false, duty 0", "enable false, duty 5");
-        assert!(check_bridge_off(&outcome(&[&pwm_on, PANIC])).is_err());
+        assert!(check(&[&pwm_on, PANIC]).is_err());
         let idle = OFF.replace(
             "before: enable true, duty 197",
             "before: enable false, duty 0",
         );
-        assert!(check_bridge_off(&outcome(&[&idle, PANIC])).is_err());
+        assert!(check(&[&idle, PANIC]).is_err());
     }
 }

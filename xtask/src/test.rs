@@ -133,9 +133,11 @@ pub fn run() -> Result<bool> {
         })
         .and_then(|outcome| {
             checks::check(&outcome, &Expected::PanicAt(PANIC_TICK))?;
-            fail_safe::check_bridge_off(&outcome)
+            fail_safe::check_bridge_off(&outcome, fail_safe::PANIC_REPORT)
         });
         tally.record(&format!("panic handler on {}", board.feature()), result);
+        let result = fail_safe::hardfault_test(*board, elf, PANIC_TICK);
+        tally.record(&format!("HardFault handler on {}", board.feature()), result);
     }
 
     for (board, elf) in elfs.iter().filter(|(b, _)| b.qemu_machine().is_some()) {
