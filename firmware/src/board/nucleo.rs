@@ -78,8 +78,9 @@
 //!   average of the current ripple and does not jump with the phase of the tick in the
 //!   period or at a reversal. The tick reads the latest result (at most one PWM period,
 //!   50 µs, old); no new result since the last tick (1 ms = 20 periods) is
-//!   [`SensorError::Timeout`]. Short on-times: [`CURRENT_SAMPLE_LEAD_TICKS`]. The sensor expected (docs/real-board.md): bidirectional, in series
-//!   with the motor, 0 A at mid-scale, [`model::sensors::ADC_COUNTS_PER_A`] counts/A.
+//!   [`SensorError::Timeout`]. Short on-times: [`CURRENT_SAMPLE_LEAD_TICKS`]. The sensor
+//!   expected (docs/real-board.md): bidirectional, in series with the motor, 0 A at
+//!   mid-scale, [`model::sensors::ADC_COUNTS_PER_A`] counts/A.
 //! - [`Watchdog`]: the independent watchdog, LSI / 32 (1 ms per count at the nominal 32 kHz),
 //!   reload 79: 80 ms nominal, 54–151 ms over the LSI's 17–47 kHz datasheet range. The
 //!   1 kHz tick feeds it ([`TickHooks::before_step`]); a loop that stalls (a tick that never
