@@ -39,6 +39,10 @@ fn bad_arguments_exit_2_before_connecting() {
             "sensors --rate: '500' is not a rate of 1–100",
         ),
         (&["--seconds", "2h"], "sensors --seconds"),
+        (
+            &["--nudge-for", "1s"],
+            "sensors --nudge-for: only applies to --nudge",
+        ),
     ] {
         let mut all = vec!["--tcp", "127.0.0.1:9", "sensors"];
         all.extend_from_slice(args);

@@ -27,9 +27,9 @@ pub struct SensorsArgs {
     /// 120 ‰; only while the motor is disabled)
     #[arg(long, value_name = "DUTY", allow_hyphen_values = true)]
     pub nudge: Option<String>,
-    /// How long the nudge lasts, 1 ms – 1 s
-    #[arg(long, value_name = "DURATION", default_value = "300ms")]
-    pub nudge_for: String,
+    /// How long the nudge lasts, 1 ms – 1 s [default: 300ms]
+    #[arg(long, value_name = "DURATION")]
+    pub nudge_for: Option<String>,
 }
 
 /// The checked arguments.
@@ -51,6 +51,12 @@ fn plan(a: &SensorsArgs) -> CliResult<Plan> {
         }
     };
     let nudge = match &a.nudge {
+        None if a.nudge_for.is_some() => {
+            return Err(CliError::usage(
+                "sensors --nudge-for",
+                "only applies to --nudge",
+            ))
+        }
         None => None,
         Some(s) => {
             let (negative, magnitude) = match s.trim().strip_prefix('-') {
@@ -65,7 +71,8 @@ fn plan(a: &SensorsArgs) -> CliResult<Plan> {
                 ));
             }
             let duty = i16::try_from(duty).unwrap_or(0);
-            let ms = quantities::duration("sensors --nudge-for", &a.nudge_for, 1)?.as_millis();
+            let span = a.nudge_for.as_deref().unwrap_or("300ms");
+            let ms = quantities::duration("sensors --nudge-for", span, 1)?.as_millis();
             let ms = u16::try_from(ms).unwrap_or(NUDGE_DURATION_MAX_MS);
             Some((if negative { -duty } else { duty }, ms))
         }
@@ -179,31 +186,34 @@ pub fn run(a: &SensorsArgs, conn: &ConnectArgs) -> CliResult<()> {
 mod tests {
     use super::*;
 
-    fn args(nudge: Option<&str>, nudge_for: &str, rate: &str) -> SensorsArgs {
+    fn args(nudge: Option<&str>, nudge_for: Option<&str>, rate: &str) -> SensorsArgs {
         SensorsArgs {
             seconds: "1".into(),
             rate: rate.into(),
             nudge: nudge.map(str::to_string),
-            nudge_for: nudge_for.into(),
+            nudge_for: nudge_for.map(str::to_string),
         }
     }
 
     #[test]
     fn nudges_are_signed_bounded_and_short() {
-        let p = plan(&args(Some("-80‰"), "250ms", "20")).unwrap();
+        let p = plan(&args(Some("-80‰"), Some("250ms"), "20")).unwrap();
         assert_eq!(p.nudge, Some((-80, 250)));
         assert_eq!(p.every, Duration::from_millis(50));
+        let p = plan(&args(Some("12%"), Some("1s"), "1")).unwrap();
+        assert_eq!(p.nudge, Some((120, 1000)));
         assert_eq!(
-            plan(&args(Some("12%"), "1s", "1")).unwrap().nudge,
-            Some((120, 1000))
+            plan(&args(Some("5%"), None, "1")).unwrap().nudge,
+            Some((50, 300))
         );
         for bad in ["13%", "0", "-0.2", "fast"] {
-            let e = plan(&args(Some(bad), "300ms", "20")).err().unwrap();
+            let e = plan(&args(Some(bad), None, "20")).err().unwrap();
             assert_eq!(e.code, 2, "{bad}");
         }
-        assert!(plan(&args(Some("5%"), "2s", "20")).is_err());
-        assert!(plan(&args(None, "300ms", "0")).is_err());
-        assert!(plan(&args(None, "300ms", "101")).is_err());
+        assert!(plan(&args(Some("5%"), Some("2s"), "20")).is_err());
+        assert!(plan(&args(None, Some("300ms"), "20")).is_err());
+        assert!(plan(&args(None, None, "0")).is_err());
+        assert!(plan(&args(None, None, "101")).is_err());
     }
 
     #[test]
