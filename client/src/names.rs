@@ -24,6 +24,10 @@ pub const fn request_name(req: &Request) -> &'static str {
         Request::Heartbeat => "heartbeat",
         Request::DisarmHeartbeat => "disarm-heartbeat",
         Request::GetLimits => "get-limits",
+        Request::Save => "save",
+        Request::Load => "load",
+        Request::FactoryReset => "factory-reset",
+        Request::FaultsLog { .. } => "faults-log",
     }
 }
 

@@ -1,7 +1,7 @@
 //! The request handler: one reply per decoded frame, side effects through [`Device`].
 
 use crate::frame::{Decoder, Frame, FrameError};
-use crate::msg::{ErrorCode, FaultRecord, Gains, Limits, Reply, Request, Status};
+use crate::msg::{ErrorCode, FaultRecord, Gains, Limits, LoggedFault, Reply, Request, Status};
 use crate::VERSION;
 
 /// What the handler asks of the device (implemented by the firmware over its controller
@@ -109,6 +109,41 @@ pub trait Device {
     /// [`Request::GetStatus`]: the current status (`protocol_errors` is overwritten by the
     /// handler).
     fn status(&mut self) -> Status;
+
+    /// [`Request::Save`]: the running configuration into the settings store.
+    ///
+    /// # Errors
+    /// [`ErrorCode::NotAllowed`] while enabled; [`ErrorCode::Storage`] if the flash failed
+    /// or (the default) the device has no store.
+    fn save(&mut self) -> Result<(), ErrorCode> {
+        Err(ErrorCode::Storage)
+    }
+
+    /// [`Request::Load`]: re-read the store and apply it.
+    ///
+    /// # Errors
+    /// [`ErrorCode::Storage`] without a store (the default).
+    fn load(&mut self) -> Result<(), ErrorCode> {
+        Err(ErrorCode::Storage)
+    }
+
+    /// [`Request::FactoryReset`]: forget the stored records and the fault log; defaults.
+    ///
+    /// # Errors
+    /// [`ErrorCode::NotAllowed`] while enabled; [`ErrorCode::Storage`] if the flash failed
+    /// or (the default) the device has no store.
+    fn factory_reset(&mut self) -> Result<(), ErrorCode> {
+        Err(ErrorCode::Storage)
+    }
+
+    /// [`Request::FaultsLog`]: the number of logged faults and entry `index` (0 = the most
+    /// recent), if it exists.
+    ///
+    /// # Errors
+    /// [`ErrorCode::Storage`] without a store (the default).
+    fn faults_log(&mut self, _index: u8) -> Result<(u8, Option<LoggedFault>), ErrorCode> {
+        Err(ErrorCode::Storage)
+    }
 }
 
 /// Protocol errors since start, per kind (saturating counters).
@@ -317,6 +352,12 @@ impl Handler {
                 Ok(Reply::Ok)
             }
             Request::GetLimits => Ok(Reply::Limits(dev.limits())),
+            Request::Save => done(dev.save()),
+            Request::Load => done(dev.load()),
+            Request::FactoryReset => done(dev.factory_reset()),
+            Request::FaultsLog { index } => dev
+                .faults_log(index)
+                .map(|(count, entry)| Reply::FaultsLog { count, entry }),
         }
     }
 

@@ -61,7 +61,11 @@ fn in_range(r: &Request) -> bool {
         | Request::AutoGains
         | Request::Heartbeat
         | Request::DisarmHeartbeat
-        | Request::GetLimits => true,
+        | Request::GetLimits
+        | Request::Save
+        | Request::Load
+        | Request::FactoryReset
+        | Request::FaultsLog { .. } => true,
     }
 }
 
@@ -263,6 +267,11 @@ proptest! {
                 Reply::FaultPersists(_) => {
                     return Err(TestCaseError::fail("the mock never has a persisting fault"))
                 }
+                Reply::FaultsLog { count, entry } => {
+                    let asked = matches!(req, Request::FaultsLog { .. });
+                    prop_assert!(asked, "FaultsLog for {:?}", req);
+                    prop_assert_eq!((count, entry), (0, None), "the mock's log is empty");
+                }
             }
         } else {
             prop_assert_eq!(reply.body, Reply::Error(ErrorCode::OutOfRange));
@@ -410,7 +419,7 @@ proptest! {
 #[test]
 fn frames_are_bounded_and_message_counts_match() {
     println!("fuzz cases per property: {}", config(FUZZ_CASES).cases);
-    assert_eq!(Request::VARIANTS, 18);
-    assert_eq!(Reply::VARIANTS, 7);
+    assert_eq!(Request::VARIANTS, 22);
+    assert_eq!(Reply::VARIANTS, 8);
     const { assert!(MAX_FRAME <= 64, "a frame fits a 64-byte DMA/queue slot") };
 }

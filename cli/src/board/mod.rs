@@ -4,6 +4,7 @@
 //! Every argument is parsed and range-checked before the connection is made (bad input
 //! exits with 2 and sends nothing); a refusal, a timeout or a lost connection exits with 1.
 
+mod config;
 mod quantities;
 pub mod serve;
 
@@ -460,6 +461,11 @@ pub enum BoardCommand {
     },
     /// Record telemetry: samples, gaps and drops; optionally to a CSV in SI units
     Record(RecordArgs),
+    /// The board's stored configuration: save, load, show, reset (factory reset)
+    #[command(subcommand)]
+    Config(config::ConfigCommand),
+    /// The faults latched now, or with --log the fault log kept in flash
+    Faults(config::FaultsArgs),
 }
 
 /// Arguments of `gains`.
@@ -544,6 +550,8 @@ enum Action {
         rate: u16,
         csv: Option<PathBuf>,
     },
+    Config(config::ConfigCommand),
+    Faults(config::FaultsArgs),
 }
 
 /// Checks a command's arguments (errors name the command and the argument).
@@ -571,6 +579,8 @@ fn plan(cmd: &BoardCommand) -> CliResult<Action> {
             frequency_mhz: quantities::frequency_mhz("sine --frequency", frequency)?,
         },
         BoardCommand::Hold => Action::Hold,
+        BoardCommand::Config(c) => Action::Config(*c),
+        BoardCommand::Faults(f) => Action::Faults(*f),
         BoardCommand::Gains(g) => Action::Gains(plan_gains(g)?),
         BoardCommand::Limits(l) => Action::Limits(plan_limits(l)?),
         BoardCommand::Wait { duration } => {
@@ -740,6 +750,8 @@ fn exec(action: &Action, s: &mut Session) -> CliResult<()> {
             String::new()
         }),
         Action::Record { span, rate, csv } => return record(s, *span, *rate, csv.as_ref()),
+        Action::Config(cmd) => config::config(c, *cmd),
+        Action::Faults(args) => config::faults(c, *args),
     };
     match r {
         Ok(text) => {
@@ -976,6 +988,10 @@ fn status_text(st: &Status) -> String {
             },
         ),
         ("protocol errors", st.protocol_errors.to_string()),
+        (
+            "stored config",
+            config::stored_line(st.differs_from_stored).to_string(),
+        ),
     ];
     let mut s = String::new();
     for (k, v) in rows {

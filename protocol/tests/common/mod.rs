@@ -6,7 +6,7 @@ use proptest::prelude::*;
 use proptest::test_runner::Config;
 use protocol::{
     Decoder, Device, ErrorCode, FaultCode, FaultRecord, FaultSet, Frame, Gains, Handler,
-    LimitFlags, Limits, Reply, Request, State, Status, TelemetrySample, CLUTCH_MAX_UM,
+    LimitFlags, Limits, LoggedFault, Reply, Request, State, Status, TelemetrySample, CLUTCH_MAX_UM,
     CLUTCH_MIN_UM, KD_MAX, KI_MAX, KP_MAX, MOVE_DURATION_MAX_MS, SINE_AMPLITUDE_MAX_URAD,
     SINE_FREQUENCY_MAX_MHZ, SINE_FREQUENCY_MIN_MHZ, TARGET_MAX_URAD,
 };
@@ -152,6 +152,10 @@ pub fn request() -> impl Strategy<Value = Request> {
         Just(Request::Heartbeat),
         Just(Request::DisarmHeartbeat),
         Just(Request::GetLimits),
+        Just(Request::Save),
+        Just(Request::Load),
+        Just(Request::FactoryReset),
+        any::<u8>().prop_map(|index| Request::FaultsLog { index }),
     ]
 }
 
@@ -176,6 +180,10 @@ pub fn request_index(r: &Request) -> u32 {
         Request::Heartbeat => 15,
         Request::DisarmHeartbeat => 16,
         Request::GetLimits => 17,
+        Request::Save => 18,
+        Request::Load => 19,
+        Request::FactoryReset => 20,
+        Request::FaultsLog { .. } => 21,
     }
 }
 
@@ -189,6 +197,7 @@ pub fn reply_index(r: &Reply) -> u32 {
         Reply::Telemetry(_) => 4,
         Reply::Limits(_) => 5,
         Reply::FaultPersists(_) => 6,
+        Reply::FaultsLog { .. } => 7,
     }
 }
 
@@ -201,6 +210,7 @@ pub fn error_code() -> impl Strategy<Value = ErrorCode> {
         ErrorCode::NotAllowed,
         ErrorCode::Busy,
         ErrorCode::UnsupportedVersion,
+        ErrorCode::Storage,
     ])
 }
 
@@ -228,10 +238,14 @@ pub fn status() -> impl Strategy<Value = Status> {
             any::<u16>(),
             any::<u32>(),
             any::<u32>(),
+            any::<bool>(),
         ),
     )
         .prop_map(
-            |((state, faults, first, limits, clutch, k), (tick, moving, rate, dropped, errors))| {
+            |(
+                (state, faults, first, limits, clutch, k),
+                (tick, moving, rate, dropped, errors, differs),
+            )| {
                 Status {
                     state,
                     faults: FaultSet(faults),
@@ -244,6 +258,7 @@ pub fn status() -> impl Strategy<Value = Status> {
                     telemetry_rate_hz: rate,
                     telemetry_dropped: dropped,
                     protocol_errors: errors,
+                    differs_from_stored: differs,
                 }
             },
         )
@@ -289,6 +304,17 @@ pub fn reply() -> impl Strategy<Value = Reply> {
         (fault_code(), any::<i32>(), any::<u32>()).prop_map(|(code, value, tick)| {
             Reply::FaultPersists(FaultRecord { code, value, tick })
         }),
+        (
+            any::<u8>(),
+            prop::option::of((any::<u32>(), fault_code(), any::<i32>(), any::<u32>()))
+        )
+            .prop_map(|(count, entry)| Reply::FaultsLog {
+                count,
+                entry: entry.map(|(seq, code, value, tick)| LoggedFault {
+                    seq,
+                    fault: FaultRecord { code, value, tick }
+                }),
+            }),
     ]
 }
 
@@ -314,6 +340,10 @@ pub enum Call {
     DisarmHeartbeat,
     Limits,
     Status,
+    Save,
+    Load,
+    FactoryReset,
+    FaultsLog(u8),
 }
 
 /// A device that records every call and keeps a little state, refusing like the
@@ -535,7 +565,28 @@ impl Device for MockDevice {
             telemetry_dropped: 0,
             // The handler must overwrite this.
             protocol_errors: 0xDEAD,
+            differs_from_stored: false,
         }
+    }
+
+    fn save(&mut self) -> Result<(), ErrorCode> {
+        self.calls.push(Call::Save);
+        Ok(())
+    }
+
+    fn load(&mut self) -> Result<(), ErrorCode> {
+        self.calls.push(Call::Load);
+        Ok(())
+    }
+
+    fn factory_reset(&mut self) -> Result<(), ErrorCode> {
+        self.calls.push(Call::FactoryReset);
+        Ok(())
+    }
+
+    fn faults_log(&mut self, index: u8) -> Result<(u8, Option<LoggedFault>), ErrorCode> {
+        self.calls.push(Call::FaultsLog(index));
+        Ok((0, None))
     }
 }
 
@@ -568,6 +619,10 @@ pub fn expected_call(r: &Request) -> Option<Call> {
         Request::Heartbeat => Call::Heartbeat,
         Request::DisarmHeartbeat => Call::DisarmHeartbeat,
         Request::GetLimits => Call::Limits,
+        Request::Save => Call::Save,
+        Request::Load => Call::Load,
+        Request::FactoryReset => Call::FactoryReset,
+        Request::FaultsLog { index } => Call::FaultsLog(index),
     })
 }
 
