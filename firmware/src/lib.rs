@@ -9,6 +9,7 @@
 //! - [`report`]: what the log task writes, and the verdict of an emulated run
 //!   ([`self_check`]); [`run_config`]: the run's options.
 //! - [`stack`]: stack painting and the high-water mark.
+//! - [`settings`]: the settings store at boot (the board's store: `board::open_settings`).
 //!
 //! The programs: `vsa-firmware` (the firmware, every board), and on the emulated boards
 //! `vsa-control-only` (the control loop and host link without the simulated actuator, for
@@ -36,6 +37,7 @@ pub mod board;
 pub mod report;
 pub mod run_config;
 pub mod self_check;
+pub mod settings;
 pub mod stack;
 pub mod tick;
 pub mod timing;

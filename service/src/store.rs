@@ -144,7 +144,7 @@ fn stored_config(config: &Config, supervision: &SupervisorConfig) -> store::Conf
 /// The service's side of the store: the store (if the board has one), the configuration
 /// the board booted with (the defaults), the records in force, the last fault logged.
 pub struct Settings {
-    storage: Option<&'static mut dyn Storage>,
+    storage: Option<&'static mut (dyn Storage + Send)>,
     defaults: (Config, SupervisorConfig),
     stored: RecordSet,
     logged: Option<FaultRecord>,
@@ -195,15 +195,29 @@ impl Service {
     }
 
     /// Takes `storage` as the board's settings store (the configuration in force now
-    /// becomes the defaults), loads it and applies what is stored and valid. Returns what
-    /// became of each record, for the boot log. The motor stays as it is (disabled at boot).
+    /// becomes the defaults), loads it and, if `apply`, applies what is stored and valid
+    /// (a scripted run keeps its own configuration). Returns what became of each record,
+    /// for the boot log. The motor stays as it is (disabled at boot).
     pub fn attach_store(
         &mut self,
-        storage: &'static mut dyn Storage,
+        storage: &'static mut (dyn Storage + Send),
         actuator: &mut impl Mutex<T = Actuator>,
+        apply: bool,
     ) -> (Report, FaultLog) {
         self.settings.defaults = (self.config, self.supervision);
         self.settings.storage = Some(storage);
+        if !apply {
+            let checks = Checks {
+                design: &self.design,
+                defaults: &self.settings.defaults,
+            };
+            let Some(storage) = self.settings.storage.as_deref_mut() else {
+                return (Report::default(), FaultLog::default());
+            };
+            let boot = storage.load(&checks);
+            self.settings.stored = boot.set;
+            return (boot.report, boot.faults);
+        }
         match self.device(actuator).load_settings() {
             Ok(loaded) => loaded,
             Err(_) => (Report::default(), FaultLog::default()),

@@ -1,8 +1,7 @@
 //! The settings store through the protocol, on the host: a RAM flash shared between two
 //! "boots" of a service, as the emulated boards keep it in a host file.
 
-use std::cell::RefCell;
-use std::rc::Rc;
+use std::sync::{Arc, Mutex, MutexGuard};
 
 use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 use model::control::Config;
@@ -20,7 +19,13 @@ use common::Cell;
 
 /// One flash, shared by the test and the store it lent to a service.
 #[derive(Clone, Default)]
-struct SharedFlash(Rc<RefCell<RamFlash<PAGES>>>);
+struct SharedFlash(Arc<Mutex<RamFlash<PAGES>>>);
+
+impl SharedFlash {
+    fn get(&self) -> MutexGuard<'_, RamFlash<PAGES>> {
+        self.0.lock().unwrap()
+    }
+}
 
 impl ErrorType for SharedFlash {
     type Error = store::RamFlashError;
@@ -29,10 +34,10 @@ impl ErrorType for SharedFlash {
 impl ReadNorFlash for SharedFlash {
     const READ_SIZE: usize = 1;
     fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
-        self.0.borrow_mut().read(offset, bytes)
+        self.get().read(offset, bytes)
     }
     fn capacity(&self) -> usize {
-        self.0.borrow().capacity()
+        self.get().capacity()
     }
 }
 
@@ -40,10 +45,10 @@ impl NorFlash for SharedFlash {
     const WRITE_SIZE: usize = store::WORD_SIZE;
     const ERASE_SIZE: usize = store::PAGE_SIZE;
     fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-        self.0.borrow_mut().erase(from, to)
+        self.get().erase(from, to)
     }
     fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
-        self.0.borrow_mut().write(offset, bytes)
+        self.get().write(offset, bytes)
     }
 }
 
@@ -65,7 +70,7 @@ impl Board {
         let mut actuator = Cell(Actuator::new(servo));
         let mut service = Service::new(design, config, sup);
         let (store, _) = Store::open(flash.clone(), &RangeChecks).unwrap();
-        let (report, _) = service.attach_store(Box::leak(Box::new(store)), &mut actuator);
+        let (report, _) = service.attach_store(Box::leak(Box::new(store)), &mut actuator, true);
         Board {
             actuator,
             service,
@@ -135,14 +140,14 @@ fn a_saved_configuration_comes_back_after_a_power_cycle() {
 fn save_and_factory_reset_are_refused_while_enabled() {
     let flash = SharedFlash::default();
     let mut b = Board::boot(&flash);
-    let words = flash.0.borrow().words_written();
+    let words = flash.get().words_written();
     assert_eq!(b.ask(Request::Enable), Reply::Ok);
     assert_eq!(b.ask(Request::Save), Reply::Error(ErrorCode::NotAllowed));
     assert_eq!(
         b.ask(Request::FactoryReset),
         Reply::Error(ErrorCode::NotAllowed)
     );
-    assert_eq!(flash.0.borrow().words_written(), words, "nothing written");
+    assert_eq!(flash.get().words_written(), words, "nothing written");
     assert_eq!(b.ask(Request::Disable), Reply::Ok);
     assert_eq!(b.ask(Request::Save), Reply::Ok);
 }

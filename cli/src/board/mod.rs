@@ -93,6 +93,16 @@ pub struct ConnectArgs {
         help_heading = "Board connection"
     )]
     pub qemu_load: Option<String>,
+    /// Host file holding the emulated board's flash (its stored settings and fault log):
+    /// read at boot, written after every store operation; created if absent. Without it
+    /// the emulated store lives in RAM and is lost at exit
+    #[arg(
+        long,
+        global = true,
+        value_name = "FILE",
+        help_heading = "Board connection"
+    )]
+    pub qemu_flash: Option<PathBuf>,
     /// Reply timeout, e.g. 2s [default: 1s]
     #[arg(
         long,
@@ -115,6 +125,7 @@ impl ConnectArgs {
             (self.elf.is_some(), "--elf"),
             (self.qemu_log.is_some(), "--qemu-log"),
             (self.qemu_load.is_some(), "--qemu-load"),
+            (self.qemu_flash.is_some(), "--qemu-flash"),
             (self.timeout.is_some(), "--timeout"),
         ]
         .into_iter()
@@ -154,6 +165,7 @@ impl ConnectArgs {
                 (self.elf.is_some(), "--elf"),
                 (self.qemu_log.is_some(), "--qemu-log"),
                 (self.qemu_load.is_some(), "--qemu-load"),
+                (self.qemu_flash.is_some(), "--qemu-flash"),
             ] {
                 if given {
                     return Err(CliError::usage(name, "only applies to --qemu"));
@@ -193,11 +205,18 @@ impl ConnectArgs {
             Some(t) => quantities::torque_mnm("--qemu-load", t)?,
             None => 0,
         };
+        let flash = match &self.qemu_flash {
+            Some(f) => {
+                Some(qemu::flash_file_arg(f).map_err(|e| CliError::usage("--qemu-flash", e))?)
+            }
+            None => None,
+        };
         Ok(QemuTarget {
             board,
             elf: self.elf.clone(),
             log: self.qemu_log.clone(),
             load_mnm,
+            flash,
         })
     }
 
@@ -218,6 +237,8 @@ pub struct QemuTarget {
     log: Option<PathBuf>,
     /// `--load-mnm` of the served firmware, mN·m.
     load_mnm: i32,
+    /// `--flash` of the served firmware.
+    flash: Option<String>,
 }
 
 impl QemuTarget {
@@ -262,11 +283,14 @@ impl QemuTarget {
     pub fn start(&self) -> CliResult<(Adopted, Client)> {
         let elf = self.elf()?;
         let sink = self.sink()?;
-        let firmware_args = if self.load_mnm == 0 {
+        let mut firmware_args = if self.load_mnm == 0 {
             Vec::new()
         } else {
             vec!["--load-mnm".to_owned(), self.load_mnm.to_string()]
         };
+        if let Some(f) = &self.flash {
+            firmware_args.extend(["--flash".to_owned(), f.clone()]);
+        }
         QemuBoard::start(self.board, &elf, &firmware_args, sink)
             .map(|(board, client)| (adopt(board), client))
             .map_err(|e| CliError::runtime(e.to_string()))
