@@ -218,10 +218,9 @@ impl Service {
             self.settings.stored = boot.set;
             return (boot.report, boot.faults);
         }
-        match self.device(actuator).load_settings() {
-            Ok(loaded) => loaded,
-            Err(_) => (Report::default(), FaultLog::default()),
-        }
+        self.device(actuator)
+            .load_settings()
+            .unwrap_or_default()
     }
 
     /// The bus identity and settings in force: the stored ones, else the AX-12A's factory

@@ -63,7 +63,7 @@ fn controller() -> pac::FLASH {
 
 fn range(offset: u32, len: usize, unit: usize) -> Result<usize, FlashError> {
     let start = offset as usize;
-    if start % unit != 0 || len % unit != 0 {
+    if !start.is_multiple_of(unit) || !len.is_multiple_of(unit) {
         return Err(FlashError::NotAligned);
     }
     match start.checked_add(len) {
