@@ -1,6 +1,6 @@
 //! `cargo xtask`: set-up, build, run and test automation for vsa.
 //!
-//! - `cargo xtask run [--board qemu-m4|qemu-m3] [--scenario NAME]`: the firmware on an
+//! - `cargo xtask run [--board qemu-m4|qemu-m3] [--scenario NAME] [--flash FILE]`: the firmware on an
 //!   emulated board running a scenario (default: the step sweep), its defmt log decoded,
 //!   and the host simulation's hash of the same scenario for comparison.
 //! - `cargo xtask test`: formatting, clippy (host and every board), host tests, release
@@ -58,6 +58,11 @@ enum Task {
         /// icount sleep=off defect: 500 ticks per emulated second).
         #[arg(long, value_parser = ["spin", "wfi"], default_value = "spin")]
         idle: String,
+        /// Host file holding the emulated board's flash (its settings store: the boot log
+        /// shows what is stored; latched faults go to its fault log); created if absent.
+        /// Two runs with one file are a power cycle.
+        #[arg(long, value_name = "FILE")]
+        flash: Option<std::path::PathBuf>,
     },
     /// Run every check: fmt, clippy, host tests, firmware builds, emulated self-tests.
     Test,
@@ -109,6 +114,7 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             scenario,
             seconds,
             idle,
+            flash,
         } => {
             anyhow::ensure!(
                 board.qemu_machine().is_some(),
@@ -136,6 +142,11 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             args.extend(["--idle".to_owned(), idle]);
             if let Some(s) = seconds {
                 args.extend(["--seconds".to_owned(), s.to_string()]);
+            }
+            if let Some(f) = &flash {
+                let f =
+                    client::qemu::flash_file_arg(f).map_err(|e| anyhow::anyhow!("--flash {e}"))?;
+                args.extend(["--flash".to_owned(), f]);
             }
             let (code, outcome) = emulate(board, &elf, &args, test::wall_limit(60))?;
             scenarios::print_host_comparison(id, &outcome)?;
