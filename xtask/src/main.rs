@@ -16,6 +16,7 @@ mod defmt_log;
 mod e2e;
 mod firmware;
 mod flash;
+mod persistence;
 mod qemu;
 mod results;
 mod scenarios;
@@ -82,6 +83,14 @@ enum Task {
         elf: PathBuf,
         /// The raw defmt bytes.
         log: PathBuf,
+    },
+    /// The settings store on an emulated board: save and power cycle, power cuts in every
+    /// word write of a save and of a factory reset, 1 000 saves (`VSA_PERSISTENCE_CUTS=N`
+    /// sweeps every N-th cut, `VSA_PERSISTENCE_SAVES=N` makes N saves).
+    Persistence {
+        /// Emulated board.
+        #[arg(long, value_enum, default_value = "qemu-m4")]
+        board: Board,
     },
     /// Instruction counts per call (fixed point vs f32), footprint and stack of each board.
     Bench,
@@ -163,6 +172,14 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             setup::ensure_qemu()?;
             let elf = firmware::build(board)?;
             let r = e2e::run(board, &elf)?;
+            println!("{}: {r}", board.feature());
+            Ok(ExitCode::SUCCESS)
+        }
+        Task::Persistence { board } => {
+            setup::ensure_targets()?;
+            setup::ensure_qemu()?;
+            let elf = firmware::build(board)?;
+            let r = persistence::run(board, &elf)?;
             println!("{}: {r}", board.feature());
             Ok(ExitCode::SUCCESS)
         }
