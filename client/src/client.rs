@@ -262,7 +262,7 @@ impl Client {
         }
     }
 
-    fn request_ok(&mut self, req: Request) -> Result<()> {
+    pub(crate) fn request_ok(&mut self, req: Request) -> Result<()> {
         match self.request(req)? {
             Reply::Ok => Ok(()),
             reply => Err(Error::UnexpectedReply {

@@ -11,6 +11,7 @@
 //! - [`stack`]: stack painting and the high-water mark.
 //! - [`fail_safe`]: the panic and HardFault handlers: the H-bridge off first, then the
 //!   report.
+//! - [`settings`]: the settings store at boot (the board's store: `board::open_settings`).
 //!
 //! The programs: `vsa-firmware` (the firmware, every board), and on the emulated boards
 //! `vsa-control-only` (the control loop and host link without the simulated actuator, for
@@ -39,6 +40,7 @@ pub mod fail_safe;
 pub mod report;
 pub mod run_config;
 pub mod self_check;
+pub mod settings;
 pub mod stack;
 pub mod tick;
 pub mod timing;

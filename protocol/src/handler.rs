@@ -1,7 +1,7 @@
 //! The request handler: one reply per decoded frame, side effects through [`Device`].
 
 use crate::frame::{Decoder, Frame, FrameError};
-use crate::msg::{ErrorCode, FaultRecord, Gains, Limits, Reply, Request, Status};
+use crate::msg::{ErrorCode, FaultRecord, Gains, Limits, LoggedFault, Reply, Request, Status};
 use crate::VERSION;
 
 /// What the handler asks of the device (implemented by the firmware over its controller
@@ -125,6 +125,41 @@ pub trait Device {
     fn nudge(&mut self, duty_permille: i16, duration_ms: u16) -> Result<(), ErrorCode> {
         let _ = (duty_permille, duration_ms);
         Err(ErrorCode::NotAllowed)
+    }
+
+    /// [`Request::Save`]: the running configuration into the settings store.
+    ///
+    /// # Errors
+    /// [`ErrorCode::NotAllowed`] while enabled; [`ErrorCode::Storage`] if the flash failed
+    /// or (the default) the device has no store.
+    fn save(&mut self) -> Result<(), ErrorCode> {
+        Err(ErrorCode::Storage)
+    }
+
+    /// [`Request::Load`]: re-read the store and apply it.
+    ///
+    /// # Errors
+    /// [`ErrorCode::Storage`] without a store (the default).
+    fn load(&mut self) -> Result<(), ErrorCode> {
+        Err(ErrorCode::Storage)
+    }
+
+    /// [`Request::FactoryReset`]: forget the stored records and the fault log; defaults.
+    ///
+    /// # Errors
+    /// [`ErrorCode::NotAllowed`] while enabled; [`ErrorCode::Storage`] if the flash failed
+    /// or (the default) the device has no store.
+    fn factory_reset(&mut self) -> Result<(), ErrorCode> {
+        Err(ErrorCode::Storage)
+    }
+
+    /// [`Request::FaultsLog`]: the number of logged faults and entry `index` (0 = the most
+    /// recent), if it exists.
+    ///
+    /// # Errors
+    /// [`ErrorCode::Storage`] without a store (the default).
+    fn faults_log(&mut self, _index: u8) -> Result<(u8, Option<LoggedFault>), ErrorCode> {
+        Err(ErrorCode::Storage)
     }
 }
 
@@ -335,6 +370,12 @@ impl Handler {
             }
             Request::GetLimits => Ok(Reply::Limits(dev.limits())),
             Request::GetSensors | Request::Nudge { .. } => crate::sensors::dispatch(req, dev),
+            Request::Save => done(dev.save()),
+            Request::Load => done(dev.load()),
+            Request::FactoryReset => done(dev.factory_reset()),
+            Request::FaultsLog { index } => dev
+                .faults_log(index)
+                .map(|(count, entry)| Reply::FaultsLog { count, entry }),
         }
     }
 

@@ -103,8 +103,8 @@ pub use frame::{
 };
 pub use handler::{Device, ErrorCounters, Handler};
 pub use msg::{
-    ErrorCode, FaultCode, FaultRecord, FaultSet, Gains, LimitFlags, Limits, Reply, Request, State,
-    Status, TelemetrySample,
+    ErrorCode, FaultCode, FaultRecord, FaultSet, Gains, LimitFlags, Limits, LoggedFault, Reply,
+    Request, State, Status, TelemetrySample,
 };
 pub use sensors::{RawSensors, NUDGE_DURATION_MAX_MS, NUDGE_DUTY_MAX_PERMILLE};
 
@@ -124,11 +124,12 @@ pub const MAX_HEADER: usize = 1 + 3;
 /// Largest postcard encoding of a [`Request`] body: `SetGains`, tag (1) + 3 × u64 (10).
 pub const MAX_REQUEST_BODY: usize = 1 + 3 * 10;
 
-/// Largest postcard encoding of a [`Reply`] body: `Status`, tag (1) + 46.
+/// Largest postcard encoding of a [`Reply`] body: `Status`, tag (1) + 47.
 ///
 /// state 1, faults 3, first fault 1 + (code 1 + value 5 + tick 5), limits 1, clutch 5,
-/// stiffness 5, tick 5, moving 1, telemetry rate 3, telemetry dropped 5, protocol errors 5.
-pub const MAX_REPLY_BODY: usize = 1 + 46;
+/// stiffness 5, tick 5, moving 1, telemetry rate 3, telemetry dropped 5, protocol errors 5,
+/// differs from stored 1.
+pub const MAX_REPLY_BODY: usize = 1 + 47;
 
 /// Largest postcard encoding of a telemetry reply body: tag (1) + 35 (see
 /// [`TelemetrySample`]).

@@ -101,6 +101,22 @@ pub enum Request {
         /// How long, ms, 1..=[`crate::NUDGE_DURATION_MAX_MS`].
         duration_ms: u16,
     },
+    /// Write the running configuration to the settings store (with the stored calibration
+    /// and bus settings), atomically. Refused with [`ErrorCode::NotAllowed`] while the motor
+    /// is enabled (programming the flash stalls the control loop on the real board);
+    /// [`ErrorCode::Storage`] if the flash fails or the device has no store.
+    Save,
+    /// Re-read the settings store and apply what is stored and valid (defaults for the
+    /// rest). [`ErrorCode::Storage`] if the device has no store.
+    Load,
+    /// Forget every stored record and the fault log, and go back to the defaults. Refused
+    /// with [`ErrorCode::NotAllowed`] while the motor is enabled.
+    FactoryReset,
+    /// One entry of the stored fault log. Reply: [`Reply::FaultsLog`].
+    FaultsLog {
+        /// Which entry, 0 = the most recent; beyond the log's length the reply has none.
+        index: u8,
+    },
 }
 
 /// PID gains, each in 10⁻³ of the controller's unit (duty ‰ out, link angle in rad), so
@@ -196,7 +212,11 @@ impl Request {
             | Request::AutoGains
             | Request::Heartbeat
             | Request::DisarmHeartbeat
-            | Request::GetLimits => true,
+            | Request::GetLimits
+            | Request::Save
+            | Request::Load
+            | Request::FactoryReset
+            | Request::FaultsLog { .. } => true,
             Request::SetClutchLength { length_um } => {
                 (CLUTCH_MIN_UM..=CLUTCH_MAX_UM).contains(&length_um)
             }
@@ -258,6 +278,8 @@ pub enum ErrorCode {
     Busy,
     /// The frame's version is not [`crate::VERSION`].
     UnsupportedVersion,
+    /// The settings store failed (a flash error), or the device has none.
+    Storage,
 }
 
 impl core::fmt::Display for ErrorCode {
@@ -270,6 +292,7 @@ impl core::fmt::Display for ErrorCode {
             ErrorCode::NotAllowed => "not allowed in this state",
             ErrorCode::Busy => "busy",
             ErrorCode::UnsupportedVersion => "unsupported protocol version",
+            ErrorCode::Storage => "settings store failed or absent",
         })
     }
 }
@@ -304,6 +327,24 @@ pub enum Reply {
     FaultPersists(FaultRecord),
     /// Reply to [`Request::GetSensors`].
     Sensors(crate::RawSensors),
+    /// Reply to [`Request::FaultsLog`]: how many faults the stored log holds, and the one
+    /// asked for if it exists.
+    FaultsLog {
+        /// Entries in the log (at most 16).
+        count: u8,
+        /// The entry asked for.
+        entry: Option<LoggedFault>,
+    },
+}
+
+/// A latched fault as the settings store's fault log keeps it (it survives resets).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LoggedFault {
+    /// Number of the fault since the log was last cleared (factory reset).
+    pub seq: u32,
+    /// The fault; its `tick` is the uptime at which it latched, ms since that boot.
+    pub fault: FaultRecord,
 }
 
 /// Operating state.
@@ -513,6 +554,10 @@ pub struct Status {
     /// Protocol errors since boot ([`crate::ErrorCounters::total`]); filled in by the
     /// [`crate::Handler`], whatever the device reports.
     pub protocol_errors: u32,
+    /// The running configuration differs from the one in the settings store (or, with
+    /// nothing stored, from the defaults): `save` would change what the next boot loads.
+    /// `false` on a device without a store.
+    pub differs_from_stored: bool,
 }
 
 /// One telemetry sample (taken at a control tick).

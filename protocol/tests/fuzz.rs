@@ -62,7 +62,11 @@ fn in_range(r: &Request) -> bool {
         | Request::Heartbeat
         | Request::DisarmHeartbeat
         | Request::GetLimits
-        | Request::GetSensors => true,
+        | Request::GetSensors
+        | Request::Save
+        | Request::Load
+        | Request::FactoryReset
+        | Request::FaultsLog { .. } => true,
         Request::Nudge {
             duty_permille,
             duration_ms,
@@ -274,6 +278,11 @@ proptest! {
                     prop_assert_eq!(req, Request::GetSensors);
                     prop_assert_eq!(r, protocol::RawSensors::default());
                 }
+                Reply::FaultsLog { count, entry } => {
+                    let asked = matches!(req, Request::FaultsLog { .. });
+                    prop_assert!(asked, "FaultsLog for {:?}", req);
+                    prop_assert_eq!((count, entry), (0, None), "the mock's log is empty");
+                }
             }
         } else {
             prop_assert_eq!(reply.body, Reply::Error(ErrorCode::OutOfRange));
@@ -421,7 +430,7 @@ proptest! {
 #[test]
 fn frames_are_bounded_and_message_counts_match() {
     println!("fuzz cases per property: {}", config(FUZZ_CASES).cases);
-    assert_eq!(Request::VARIANTS, 20);
-    assert_eq!(Reply::VARIANTS, 8);
+    assert_eq!(Request::VARIANTS, 24);
+    assert_eq!(Reply::VARIANTS, 9);
     const { assert!(MAX_FRAME <= 64, "a frame fits a 64-byte DMA/queue slot") };
 }

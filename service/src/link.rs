@@ -87,9 +87,11 @@ impl<'q, W: Write> Link<'q, W> {
         &self.tx
     }
 
-    /// Handles everything queued: received bytes first (a reply for each completed frame),
+    /// Handles everything queued (after logging a newly latched fault to the settings
+    /// store, [`Service::log_latched_fault`]): received bytes first (a reply for each completed frame),
     /// then telemetry, until both queues are empty.
     pub fn poll(&mut self, actuator: &mut impl Mutex<T = Actuator>) {
+        self.service.log_latched_fault(actuator);
         loop {
             if let Some(byte) = self.rx.dequeue() {
                 let mut device = self.service.device(actuator);

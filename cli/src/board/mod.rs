@@ -4,6 +4,7 @@
 //! Every argument is parsed and range-checked before the connection is made (bad input
 //! exits with 2 and sends nothing); a refusal, a timeout or a lost connection exits with 1.
 
+mod config;
 mod quantities;
 pub mod sensors;
 pub mod serve;
@@ -93,6 +94,16 @@ pub struct ConnectArgs {
         help_heading = "Board connection"
     )]
     pub qemu_load: Option<String>,
+    /// Host file holding the emulated board's flash (its stored settings and fault log):
+    /// read at boot, written after every store operation; created if absent. Without it
+    /// the emulated store lives in RAM and is lost at exit
+    #[arg(
+        long,
+        global = true,
+        value_name = "FILE",
+        help_heading = "Board connection"
+    )]
+    pub qemu_flash: Option<PathBuf>,
     /// Reply timeout, e.g. 2s [default: 1s]
     #[arg(
         long,
@@ -115,6 +126,7 @@ impl ConnectArgs {
             (self.elf.is_some(), "--elf"),
             (self.qemu_log.is_some(), "--qemu-log"),
             (self.qemu_load.is_some(), "--qemu-load"),
+            (self.qemu_flash.is_some(), "--qemu-flash"),
             (self.timeout.is_some(), "--timeout"),
         ]
         .into_iter()
@@ -154,6 +166,7 @@ impl ConnectArgs {
                 (self.elf.is_some(), "--elf"),
                 (self.qemu_log.is_some(), "--qemu-log"),
                 (self.qemu_load.is_some(), "--qemu-load"),
+                (self.qemu_flash.is_some(), "--qemu-flash"),
             ] {
                 if given {
                     return Err(CliError::usage(name, "only applies to --qemu"));
@@ -193,11 +206,18 @@ impl ConnectArgs {
             Some(t) => quantities::torque_mnm("--qemu-load", t)?,
             None => 0,
         };
+        let flash = match &self.qemu_flash {
+            Some(f) => {
+                Some(qemu::flash_file_arg(f).map_err(|e| CliError::usage("--qemu-flash", e))?)
+            }
+            None => None,
+        };
         Ok(QemuTarget {
             board,
             elf: self.elf.clone(),
             log: self.qemu_log.clone(),
             load_mnm,
+            flash,
         })
     }
 
@@ -218,6 +238,8 @@ pub struct QemuTarget {
     log: Option<PathBuf>,
     /// `--load-mnm` of the served firmware, mN·m.
     load_mnm: i32,
+    /// `--flash` of the served firmware.
+    flash: Option<String>,
 }
 
 impl QemuTarget {
@@ -262,11 +284,14 @@ impl QemuTarget {
     pub fn start(&self) -> CliResult<(Adopted, Client)> {
         let elf = self.elf()?;
         let sink = self.sink()?;
-        let firmware_args = if self.load_mnm == 0 {
+        let mut firmware_args = if self.load_mnm == 0 {
             Vec::new()
         } else {
             vec!["--load-mnm".to_owned(), self.load_mnm.to_string()]
         };
+        if let Some(f) = &self.flash {
+            firmware_args.extend(["--flash".to_owned(), f.clone()]);
+        }
         QemuBoard::start(self.board, &elf, &firmware_args, sink)
             .map(|(board, client)| (adopt(board), client))
             .map_err(|e| CliError::runtime(e.to_string()))
@@ -461,6 +486,11 @@ pub enum BoardCommand {
     },
     /// Record telemetry: samples, gaps and drops; optionally to a CSV in SI units
     Record(RecordArgs),
+    /// The board's stored configuration: save, load, show, reset (factory reset)
+    #[command(subcommand)]
+    Config(config::ConfigCommand),
+    /// The faults latched now, or with --log the fault log kept in flash
+    Faults(config::FaultsArgs),
 }
 
 /// Arguments of `gains`.
@@ -545,6 +575,8 @@ enum Action {
         rate: u16,
         csv: Option<PathBuf>,
     },
+    Config(config::ConfigCommand),
+    Faults(config::FaultsArgs),
 }
 
 /// Checks a command's arguments (errors name the command and the argument).
@@ -572,6 +604,8 @@ fn plan(cmd: &BoardCommand) -> CliResult<Action> {
             frequency_mhz: quantities::frequency_mhz("sine --frequency", frequency)?,
         },
         BoardCommand::Hold => Action::Hold,
+        BoardCommand::Config(c) => Action::Config(*c),
+        BoardCommand::Faults(f) => Action::Faults(*f),
         BoardCommand::Gains(g) => Action::Gains(plan_gains(g)?),
         BoardCommand::Limits(l) => Action::Limits(plan_limits(l)?),
         BoardCommand::Wait { duration } => {
@@ -741,6 +775,8 @@ fn exec(action: &Action, s: &mut Session) -> CliResult<()> {
             String::new()
         }),
         Action::Record { span, rate, csv } => return record(s, *span, *rate, csv.as_ref()),
+        Action::Config(cmd) => config::config(c, *cmd),
+        Action::Faults(args) => config::faults(c, *args),
     };
     match r {
         Ok(text) => {
@@ -977,6 +1013,10 @@ fn status_text(st: &Status) -> String {
             },
         ),
         ("protocol errors", st.protocol_errors.to_string()),
+        (
+            "stored config",
+            config::stored_line(st.differs_from_stored).to_string(),
+        ),
     ];
     let mut s = String::new();
     for (k, v) in rows {
