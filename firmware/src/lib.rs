@@ -9,6 +9,7 @@
 //! - [`report`]: what the log task writes, and the verdict of an emulated run
 //!   ([`self_check`]); [`run_config`]: the run's options.
 //! - [`stack`]: stack painting and the high-water mark.
+//! - [`bus`]: the Dynamixel bus on the host-link UART.
 //!
 //! The programs: `vsa-firmware` (the firmware, every board), and on the emulated boards
 //! `vsa-control-only` (the control loop and host link without the simulated actuator, for
@@ -33,6 +34,7 @@ compile_error!(
 );
 
 pub mod board;
+pub mod bus;
 pub mod report;
 pub mod run_config;
 pub mod self_check;

@@ -24,6 +24,8 @@ pub struct RunConfig {
     /// QEMU's `-icount` shift, if the runner passed it: one instruction takes 2^shift ns of
     /// virtual time, so SysTick counts convert to instructions.
     pub icount_shift: Option<u8>,
+    /// `--dxl-id N`: the board's ID on the Dynamixel bus (0–252; default 1).
+    pub dxl_id: u8,
 }
 
 /// How the idle loop waits.
@@ -50,6 +52,7 @@ impl RunConfig {
             #[cfg(feature = "qemu")]
             serve_load_mnm: 0,
             icount_shift: None,
+            dxl_id: 1,
         }
     }
 
@@ -111,6 +114,14 @@ impl RunConfig {
                     }
                     config.icount_shift = Some(shift);
                 }
+                "--dxl-id" => {
+                    let value = args.next().ok_or(RunConfigError::MissingValue)?;
+                    config.dxl_id = value
+                        .parse()
+                        .ok()
+                        .filter(|&id: &u8| id <= 252)
+                        .ok_or(RunConfigError::BadDynamixelId)?;
+                }
                 _ => return Err(RunConfigError::UnknownArgument),
             }
         }
@@ -142,4 +153,6 @@ pub enum RunConfigError {
     BadLoad,
     /// An argument this firmware does not know.
     UnknownArgument,
+    /// `--dxl-id` is not 0..=252.
+    BadDynamixelId,
 }

@@ -242,6 +242,12 @@ impl Bus {
         self.port.poll(&mut backend)
     }
 
+    /// REBOOT: the bus state starts anew (Lock and a registered write cleared); the
+    /// settings and the actuator stay as they are (the board itself does not restart).
+    pub fn restart(&mut self) {
+        self.port = Port::new(&mut self.regs.store);
+    }
+
     /// The compliance registers (CW margin, CCW margin, CW slope, CCW slope; AX units) for
     /// the controller's virtual compliance. The hook for an impedance command: nothing
     /// applies them yet.

@@ -35,6 +35,7 @@ use protocol::{
 use rtic_core::Mutex;
 
 pub mod dynamixel;
+pub mod line;
 pub mod link;
 
 use fixed::types::I32F32;
