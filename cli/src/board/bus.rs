@@ -2,11 +2,14 @@
 //! half-duplex Dynamixel bus, exposed as a pseudo-terminal at PATH (a symbolic link to
 //! `/dev/pts/N`), so that any Dynamixel client opens it like a USB2Dynamixel adapter.
 //!
-//! The bus is a wire: what the client writes reaches every board, and what a board sends
-//! reaches the client and every other board (a SYNC READ status follows the status of the
-//! ID listed before it, as on a real bus), never the board that sent it. Each board runs
-//! with `--dxl-id ID`; the boards keep their own protocol too, but it has no addresses:
-//! on a shared bus every board would answer one of our frames, so use it with one ID.
+//! The bus is a wire for Dynamixel traffic: what the client writes reaches every board,
+//! and a Dynamixel packet a board sends reaches the client and every other board (a SYNC
+//! READ status follows the status of the ID listed before it, as on a real bus), never the
+//! board that sent it. Each board runs with `--dxl-id ID`. The boards keep our own
+//! protocol on the same line, but it has no addresses: its frames from a board go to the
+//! client only, because a board that heard another's reply would take it for a request
+//! (an `Ok` reply and a `Ping` request are the same bytes) and answer it, and the two
+//! would answer each other forever. Use our protocol with one ID on the bus.
 
 use std::io::{Read, Write};
 use std::net::TcpStream;
@@ -120,6 +123,46 @@ fn start_boards(ids: &[u8], conn: &ConnectArgs) -> CliResult<Vec<(Adopted, TcpSt
     Ok(boards)
 }
 
+/// Picks the Dynamixel packets out of what one board sends (both protocols: `FF FF ID LEN`
+/// and `FF FF FD 00 ID LEN_L LEN_H`); everything else is our protocol's.
+#[derive(Debug, Default)]
+struct Outbound {
+    held: Vec<u8>,
+}
+
+impl Outbound {
+    /// The whole packets among `bytes` (and those held from before), in order.
+    fn packets(&mut self, bytes: &[u8]) -> Vec<u8> {
+        let mut out = Vec::new();
+        for &b in bytes {
+            self.held.push(b);
+            loop {
+                let h = &self.held;
+                let total = match h.as_slice() {
+                    [] => break,
+                    [0xFF] | [0xFF, 0xFF] | [0xFF, 0xFF, 0xFD, ..] if h.len() < 7 => break,
+                    [0xFF, 0xFF, 0xFD, _, _, lo, hi, ..] => {
+                        7 + usize::from(*lo) + 256 * usize::from(*hi)
+                    }
+                    [0xFF, 0xFF, _] => break,
+                    [0xFF, 0xFF, _, len, ..] => 4 + usize::from(*len),
+                    _ => {
+                        // Not a packet start: our protocol's byte.
+                        self.held.remove(0);
+                        continue;
+                    }
+                };
+                if h.len() >= total {
+                    out.extend(self.held.drain(..total));
+                } else {
+                    break;
+                }
+            }
+        }
+        out
+    }
+}
+
 /// Runs the bus until a board stops or the process is stopped (Ctrl-C).
 pub fn run(link: &Path, ids: &[u8], conn: &ConnectArgs) -> CliResult<()> {
     if ids.is_empty() {
@@ -133,6 +176,7 @@ pub fn run(link: &Path, ids: &[u8], conn: &ConnectArgs) -> CliResult<()> {
         ids.iter().map(u8::to_string).collect::<Vec<_>>().join(",")
     ));
     let mut buf = [0u8; 4096];
+    let mut outbound: Vec<Outbound> = boards.iter().map(|_| Outbound::default()).collect();
     let result = loop {
         let readable: Vec<bool> = {
             let mut fds = vec![PollFd::new(master.as_fd(), PollFlags::POLLIN)];
@@ -175,9 +219,10 @@ pub fn run(link: &Path, ids: &[u8], conn: &ConnectArgs) -> CliResult<()> {
                 Ok(n) => n,
             };
             let _ = master.write_all(&buf[..n]);
+            let packets = outbound[i].packets(&buf[..n]);
             for (j, (_, s)) in boards.iter_mut().enumerate() {
-                if j != i {
-                    let _ = s.write_all(&buf[..n]);
+                if j != i && !packets.is_empty() {
+                    let _ = s.write_all(&packets);
                 }
             }
         }
@@ -196,7 +241,27 @@ pub fn run(link: &Path, ids: &[u8], conn: &ConnectArgs) -> CliResult<()> {
 
 #[cfg(test)]
 mod tests {
-    use super::parse_ids;
+    use super::{parse_ids, Outbound};
+
+    #[test]
+    fn only_dynamixel_packets_go_to_the_other_boards() {
+        let mut o = Outbound::default();
+        let v1 = [0xFF, 0xFF, 0x01, 0x02, 0x00, 0xFC];
+        let v2 = [
+            0xFF, 0xFF, 0xFD, 0x00, 0x01, 0x04, 0x00, 0x55, 0x00, 0xA1, 0x0C,
+        ];
+        // One of our frames (no 0xFF start), then a 1.0 status split across two reads.
+        assert!(o
+            .packets(&[0x03, 0x01, 0x02, 0x00, 0xFF, 0xFF, 0x01])
+            .is_empty());
+        assert_eq!(o.packets(&v1[3..]), v1);
+        let mut both = v2.to_vec();
+        both.extend_from_slice(&[0x02, 0x05, 0x00]);
+        both.extend_from_slice(&v1);
+        let mut expected = v2.to_vec();
+        expected.extend_from_slice(&v1);
+        assert_eq!(o.packets(&both), expected);
+    }
 
     #[test]
     fn ids_are_checked() {
