@@ -98,16 +98,19 @@ def timed_reads(label, n, read_once):
     """n reads; each returns (result, ok_data). A timeout (no status within the SDK's
     packet timeout) is counted apart from a wrong or corrupt answer."""
     timeouts = wrong = 0
+    examples = []
     t0 = time.perf_counter()
     for _ in range(n):
         result, ok = read_once()
         if result == COMM_RX_TIMEOUT:
             timeouts += 1
-        elif result != COMM_SUCCESS or not ok:
+        elif result != COMM_SUCCESS or ok is not True:
             wrong += 1
+            if len(examples) < 3:
+                examples.append((result, ok))
     dt = time.perf_counter() - t0
     check(n > 0 and timeouts == 0 and wrong == 0,
-          f"{label}: {n} back-to-back, {timeouts} timeouts, {wrong} wrong, {1000 * dt / n:.3f} ms each")
+          f"{label}: {n} back-to-back, {timeouts} timeouts, {wrong} wrong {examples}, {1000 * dt / max(n, 1):.3f} ms each")
 
 
 def protocol1(port):
@@ -171,7 +174,7 @@ def protocol1(port):
     check(led == 0, f"1.0 LED after two corrupted writes: {led}")
     def read_id2():
         pos, res, err = ph.read2ByteTxRx(port, 2, 36)
-        return res, err == 0 and abs(pos - goals[2]) <= tol
+        return res, True if err == 0 and abs(pos - goals[2]) <= tol else f"error {err}, position {pos}"
     timed_reads("1.0 READ present position of id 2", OPTS["--reads"], read_id2)
     ph.write1ByteTxOnly(port, BROADCAST, 5, 0)  # return delay 0
     timed_reads("1.0 READ at return delay 0", OPTS["--zero-delay-reads"], read_id2)

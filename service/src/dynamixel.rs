@@ -8,31 +8,10 @@
 //! same preparation and the same checks as our own protocol's requests, between two
 //! control ticks.
 //!
-//! # Mapping (what each register means on this actuator)
-//!
-//! | register | here |
-//! |---|---|
-//! | Goal Position (AX 30: 1024 counts over 300°, 512 = 0 rad; X 116: 4096 per turn, 2048 = 0 rad) | the link (output) angle; a goal outside the supervisor's position window is refused with the angle-limit bit (X: data limit); while torque is on, a write starts a minimum-jerk move |
-//! | Moving Speed (AX 32, 0.111 rpm) / Profile Velocity (X 112, 0.229 rpm) | the move's peak speed: duration T = 1.875·|Δθ|/v (the minimum-jerk peak, eq. of §11); 0 = the AX-12A's top speed, 114 rpm |
-//! | Torque Limit (AX 34, 0–1023) | the live torque margin: the coupling torque may use v/1023 of the beams' capacity τ_cap(L) (never more; 0 → 1 ‰) |
-//! | Present Position (36 / 132), Present Speed (38 / 128) | measured link angle and velocity (AX: bit 10 = CW, i.e. negative) |
-//! | Present Load (AX 40 / X 126) | the controller's torque estimate as ‰ of τ_cap(L) (AX: 0–1023, bit 10 = CW, i.e. negative; X: signed) |
-//! | Torque Enable (24 / 64) | enable (hold, then move to a goal written while off) / disable; refused (range bit, X: result fail) while a fault is latched |
-//! | Moving (46 / 122) | the trajectory is moving |
-//! | Present Voltage (42 / 144) | the configured supply (no voltage sensor is fitted) |
-//! | Present Temperature (43 / 146) | a constant 30 °C (no temperature sensor is fitted) |
-//! | Compliance Margin/Slope (26–29) | stored; [`Bus::compliance`] hands them to a virtual (controller) compliance once the controller offers one — until then they change nothing |
-//! | Punch (48), LED (25 / 65), Alarm LED, Shutdown, limits of temperature and voltage | stored, not acted on (no LED, no sensors) |
-//! | Clutch Length (AX 50 / X 1024) | the configured active beam length; a write reconfigures the controller (the user slides the clutch there) |
-//! | Stiffness (52 / 1026) | k(L); a write configures L = L(k) (read Clutch Length for where to set the clutch) |
-//! | Beam Capacity (56 / 1030) | τ_cap(L), µN·m |
-//! | Latched Faults (60 / 1034) | the supervisor's latched faults (`1 << code`); writing 0 clears them, refused while a condition persists |
-//! | Calibration State (62 / 1036) | [`Bus::set_calibration_state`] (the calibration's hook) |
-//! | Protocol Type (63 / 1037, X also 13) | which protocol the bus speaks; [`Bus::settings_changed`] tells the caller to persist it |
-//!
-//! Latched faults show in every status: beam overload and over-current as the overload bit
-//! (X: alert, Hardware Error Status bit 5; over-current also bit 4), sensor faults as the
-//! X series' sensor bit. The voltage and overheating bits never show (no such sensors).
+//! What each register means on this actuator, what cannot be honoured, and the wiring:
+//! `docs/dynamixel.md`. Latched faults show in every status as the hardware-error bits
+//! ([`dynamixel::device::hardware`]): beam overload and over-current as overload
+//! (over-current also as electrical shock), sensor faults as sensor.
 
 use crate::{q32_to_micro, stiffness_mnm, wire_faults, Actuator, Service, ServiceDevice};
 use dynamixel::device::hardware;
