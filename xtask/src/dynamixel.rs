@@ -10,10 +10,11 @@
 //! `python3 -m venv`; when the `venv` module is missing and we are root with apt-get,
 //! `python3-venv` is installed the way `setup` installs QEMU: never removing a package).
 //!
-//! `DXL_LATENCY_MS` (default 250) is the SDK's latency allowance: a status times out after
+//! `DXL_LATENCY_MS` (default 1000) is the SDK's latency allowance: a status times out after
 //! twice that plus 2 ms. QEMU's emulated USART takes the host's bytes slowly on a loaded
-//! machine (about 1 kB/s at a load of 13 on 2 cores, see `e2e`), which the SDK's 16 ms
-//! default does not survive. `DXL_READS` (default 1000) sets the number of back-to-back
+//! machine (about 1 kB/s at a load of 13 on 2 cores, see `e2e`), and a loaded host stalls
+//! the emulators now and then for most of a second: the SDK's 16 ms default does not
+//! survive that. `DXL_READS` (default 1000) sets the number of back-to-back
 //! 1.0 READs.
 
 use std::io::{BufRead, BufReader};
@@ -129,7 +130,7 @@ pub fn run(board: Board, elf: &Path) -> Result<String> {
     );
     println!("[{} dynamixel] {}", board.feature(), ready.trim());
 
-    let latency = std::env::var("DXL_LATENCY_MS").unwrap_or_else(|_| "250".into());
+    let latency = std::env::var("DXL_LATENCY_MS").unwrap_or_else(|_| "1000".into());
     let reads = std::env::var("DXL_READS").unwrap_or_else(|_| "1000".into());
     let started = Instant::now();
     let out = Command::new(&python)

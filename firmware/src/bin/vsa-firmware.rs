@@ -141,9 +141,8 @@ mod app {
             .shared
             .actuator
             .lock(|actuator| control.tick(entry, actuator, telemetry_tx));
-        // Every tick, not only with a telemetry sample: the link task notices an idle
-        // Dynamixel line (`firmware::bus`).
-        let _ = result.sampled;
+        // Every tick, not only when a telemetry sample was queued: the link task also
+        // notices an idle Dynamixel line (`firmware::bus`).
         NVIC::pend(board::pac::Interrupt::EXTI1);
         timing::publish_tick(tick);
 
