@@ -96,6 +96,7 @@ mod frame;
 mod handler;
 mod msg;
 mod replay;
+mod sensors;
 
 pub use frame::{
     decode_payload, encode, encode_raw, encode_telemetry, encode_to_vec, telemetry_frame, Decoder,
@@ -107,6 +108,7 @@ pub use msg::{
     Status, TelemetrySample,
 };
 pub use replay::ReplyCache;
+pub use sensors::{RawSensors, NUDGE_DURATION_MAX_MS, NUDGE_DUTY_MAX_PERMILLE};
 
 /// Protocol version carried in every frame. A frame with another version is answered with
 /// [`ErrorCode::UnsupportedVersion`] (echoing its `seq`).

@@ -15,11 +15,13 @@ mod cmd;
 mod defmt_log;
 mod dynamixel;
 mod e2e;
+mod fail_safe;
 mod firmware;
 mod flash;
 mod qemu;
 mod results;
 mod scenarios;
+mod sensors;
 mod setup;
 mod test;
 

@@ -6,6 +6,7 @@
 
 pub mod bus;
 mod quantities;
+pub mod sensors;
 pub mod serve;
 
 use std::fmt::Write as _;
