@@ -336,7 +336,9 @@ impl Actuator {
 fn refused(e: ServoError) -> ErrorCode {
     match e {
         ServoError::Faulted => ErrorCode::NotAllowed,
-        ServoError::Control(_) | ServoError::Supervisor(_) => ErrorCode::OutOfRange,
+        ServoError::Control(_) | ServoError::Supervisor(_) | ServoError::Impedance(_) => {
+            ErrorCode::OutOfRange
+        }
     }
 }
 
