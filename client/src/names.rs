@@ -24,6 +24,7 @@ pub const fn request_name(req: &Request) -> &'static str {
         Request::Heartbeat => "heartbeat",
         Request::DisarmHeartbeat => "disarm-heartbeat",
         Request::GetLimits => "get-limits",
+        Request::Impedance { .. } => "impedance",
     }
 }
 

@@ -25,7 +25,7 @@ mod sealed {
 }
 
 impl Message for Request {
-    const VARIANTS: u32 = 18;
+    const VARIANTS: u32 = 19;
 }
 
 impl Message for Reply {

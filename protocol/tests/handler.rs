@@ -396,9 +396,9 @@ fn each_bad_frame_kind() {
         rig.feed(&w),
         vec![Frame::new(78, Reply::Error(ErrorCode::UnsupportedVersion))]
     );
-    // Unknown message index 18 with a good CRC: echoes the seq.
+    // Unknown message index 19 with a good CRC: echoes the seq.
     let mut w = [0u8; MAX_FRAME];
-    let n = encode_raw(&[VERSION, 79, 18], &mut w).unwrap();
+    let n = encode_raw(&[VERSION, 79, 19], &mut w).unwrap();
     assert_eq!(
         rig.feed(&w[..n]),
         vec![Frame::new(79, Reply::Error(ErrorCode::UnknownMessage))]

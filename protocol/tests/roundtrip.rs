@@ -160,6 +160,12 @@ fn largest_requests() -> Vec<Request> {
         Request::Heartbeat,
         Request::DisarmHeartbeat,
         Request::GetLimits,
+        Request::Impedance {
+            target_urad: i32::MIN,
+            stiffness_mnm_per_rad: u32::MAX,
+            damping_unms_per_rad: u32::MAX,
+            torque_unm: i32::MIN,
+        },
     ]
 }
 

@@ -34,6 +34,7 @@ use protocol::{
 };
 use rtic_core::Mutex;
 
+mod impedance;
 pub mod link;
 
 use fixed::types::I32F32;
@@ -514,6 +515,10 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
             amplitude: Angle::from_bits(micro_to_q32(amplitude_urad.into())),
             frequency,
         })
+    }
+
+    fn impedance(&mut self, target: i32, k: u32, d: u32, torque: i32) -> Result<(), ErrorCode> {
+        impedance::apply(self, target, k, d, torque)
     }
 
     fn hold(&mut self) -> Result<(), ErrorCode> {

@@ -4,6 +4,7 @@
 //! Every argument is parsed and range-checked before the connection is made (bad input
 //! exits with 2 and sends nothing); a refusal, a timeout or a lost connection exits with 1.
 
+mod impedance;
 mod quantities;
 pub mod serve;
 
@@ -448,6 +449,9 @@ pub enum BoardCommand {
     },
     /// Stop any motion and hold the current reference
     Hold,
+    /// Hold an angle as a spring-damper softer than the clutch setting, e.g.
+    /// `impedance 0.3rad --stiffness 20Nm/rad --damping 0.2Nms/rad [--torque 0.1Nm]`
+    Impedance(impedance::ImpedanceArgs),
     /// Explicit PID gains (`--kp 800 --ki 2000 --kd 20`), or `--auto` for the scheduled ones
     Gains(GainsArgs),
     /// Live limits and the position window; options not given take their defaults
@@ -536,6 +540,7 @@ enum Action {
         frequency_mhz: u32,
     },
     Hold,
+    Impedance(impedance::Plan),
     Gains(Option<Gains>),
     Limits(Limits),
     Wait(Duration),
@@ -571,6 +576,7 @@ fn plan(cmd: &BoardCommand) -> CliResult<Action> {
             frequency_mhz: quantities::frequency_mhz("sine --frequency", frequency)?,
         },
         BoardCommand::Hold => Action::Hold,
+        BoardCommand::Impedance(a) => Action::Impedance(impedance::plan(a)?),
         BoardCommand::Gains(g) => Action::Gains(plan_gains(g)?),
         BoardCommand::Limits(l) => Action::Limits(plan_limits(l)?),
         BoardCommand::Wait { duration } => {
@@ -740,6 +746,7 @@ fn exec(action: &Action, s: &mut Session) -> CliResult<()> {
             String::new()
         }),
         Action::Record { span, rate, csv } => return record(s, *span, *rate, csv.as_ref()),
+        Action::Impedance(p) => return impedance::run(s, p),
     };
     match r {
         Ok(text) => {

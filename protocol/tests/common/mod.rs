@@ -152,6 +152,18 @@ pub fn request() -> impl Strategy<Value = Request> {
         Just(Request::Heartbeat),
         Just(Request::DisarmHeartbeat),
         Just(Request::GetLimits),
+        (
+            angle(),
+            edge_u32(0, 10_000_000),
+            edge_u32(0, 200_000_000),
+            angle()
+        )
+            .prop_map(|(target_urad, k, d, t)| Request::Impedance {
+                target_urad,
+                stiffness_mnm_per_rad: k,
+                damping_unms_per_rad: d,
+                torque_unm: t.saturating_mul(64),
+            }),
     ]
 }
 
@@ -176,6 +188,7 @@ pub fn request_index(r: &Request) -> u32 {
         Request::Heartbeat => 15,
         Request::DisarmHeartbeat => 16,
         Request::GetLimits => 17,
+        Request::Impedance { .. } => 18,
     }
 }
 
@@ -314,6 +327,7 @@ pub enum Call {
     DisarmHeartbeat,
     Limits,
     Status,
+    Impedance(i32, u32, u32, i32),
 }
 
 /// A device that records every call and keeps a little state, refusing like the
@@ -516,6 +530,25 @@ impl Device for MockDevice {
         self.limits
     }
 
+    fn impedance(
+        &mut self,
+        target_urad: i32,
+        stiffness_mnm_per_rad: u32,
+        damping_unms_per_rad: u32,
+        torque_unm: i32,
+    ) -> Result<(), ErrorCode> {
+        self.calls.push(Call::Impedance(
+            target_urad,
+            stiffness_mnm_per_rad,
+            damping_unms_per_rad,
+            torque_unm,
+        ));
+        if stiffness_mnm_per_rad > self.stiffness_mnm_per_rad {
+            return Err(ErrorCode::OutOfRange);
+        }
+        self.motion()
+    }
+
     fn persisting_fault(&mut self) -> Option<FaultRecord> {
         self.persisting
     }
@@ -568,6 +601,17 @@ pub fn expected_call(r: &Request) -> Option<Call> {
         Request::Heartbeat => Call::Heartbeat,
         Request::DisarmHeartbeat => Call::DisarmHeartbeat,
         Request::GetLimits => Call::Limits,
+        Request::Impedance {
+            target_urad,
+            stiffness_mnm_per_rad,
+            damping_unms_per_rad,
+            torque_unm,
+        } => Call::Impedance(
+            target_urad,
+            stiffness_mnm_per_rad,
+            damping_unms_per_rad,
+            torque_unm,
+        ),
     })
 }
 
