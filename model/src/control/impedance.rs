@@ -57,9 +57,9 @@ pub const MAX_DAMPING_NMS_PER_RAD: I32F32 = I32F32::lit("100");
 /// applies anyway).
 pub const MAX_FEED_FORWARD_NM: i32 = 100;
 
-/// What an impedance command asks (see the module docs).
+/// What an impedance command asks (see the module docs). (Not `defmt::Format`: the
+/// damping is a plain I32F32; log the fields' bits.)
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ImpedanceCommand {
     /// Target link angle θ_t, absolute, rad, |·| ≤ [`MAX_ANGLE_RAD`].
     pub target: Angle,
