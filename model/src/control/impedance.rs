@@ -1,6 +1,6 @@
 //! Impedance command: hold a target angle θ_t with a virtual stiffness k_v (at most the
 //! beams' k at the clutch setting), a virtual damping d_v and a feed-forward torque τ_ff,
-//! as admittance over the position loop (docs/design.md §11.7).
+//! as admittance over the position loop (docs/design.md §11, "Impedance command").
 //!
 //! The law asks the coupling torque on the link, τ_c, to follow the virtual spring-damper:
 //! τ_c = k_v·(θ_t − θ) − d_v·θ̇ + τ_ff. Each tick it turns the controller's coupling-torque
@@ -37,7 +37,8 @@ use crate::units::{Angle, Inertia, Stiffness, Torque};
 const TICKS_PER_S: i32 = 1000;
 /// The reference's lag is at least `LAG_BANDWIDTH_RATIO`/ω_c (ω_c the position loop's
 /// bandwidth): faster virtual dynamics than the loop can follow make the torque estimate's
-/// free-play transients drive the reference into a limit cycle (docs/design.md §11.7).
+/// free-play transients drive the reference into a limit cycle (docs/design.md §11,
+/// "Impedance command").
 pub const LAG_BANDWIDTH_RATIO: i32 = 4;
 /// And at least `LAG_INERTIA_RATIO`·J_l·ω_c/k_v.
 pub const LAG_INERTIA_RATIO: i32 = 8;
