@@ -42,10 +42,12 @@ const TICKS_PER_S: i32 = 1000;
 pub const LAG_BANDWIDTH_RATIO: i32 = 4;
 /// And at least `LAG_INERTIA_RATIO`·J_l·ω_c/k_v.
 pub const LAG_INERTIA_RATIO: i32 = 8;
-/// Duration of the approach move per rad of distance, ms.
-pub const APPROACH_MS_PER_RAD: u32 = 500;
+/// Duration of the approach move per rad of distance, ms (peak speed 1.9 rad/s, peak
+/// acceleration 5.8/h rad/s² for a distance h: gentle enough for a link three times
+/// heavier than configured).
+pub const APPROACH_MS_PER_RAD: u32 = 1000;
 /// Shortest approach move, ms.
-pub const APPROACH_MIN_MS: u32 = 100;
+pub const APPROACH_MIN_MS: u32 = 200;
 /// One encoder count, rad Q32.
 const ENCODER_COUNT_Q32: u128 = 2 * ENCODER_HALF_COUNT_Q32 as u128;
 /// Softest virtual stiffness accepted, N·m/rad (1/k_v must fit its [`Gain`]; 0.1 N·m/rad
@@ -190,7 +192,7 @@ impl Impedance {
     }
 
     /// The position command that takes the link from the reference `start` to θ_t before
-    /// the law starts: a minimum-jerk move of [`APPROACH_MS_PER_RAD`] per rad, at least
+    /// the law starts: a minimum-jerk move of [`APPROACH_MS_PER_RAD`] ms per rad, at least
     /// [`APPROACH_MIN_MS`] (a spring stretched by |θ_t − θ| at once would ask the loop for a
     /// raw step with the reference moving on; the move's feed-forward follows it cleanly),
     /// or a step within one encoder count.
@@ -338,21 +340,21 @@ mod tests {
     }
 
     #[test]
-    fn the_approach_is_a_move_of_half_a_second_per_radian() {
+    fn the_approach_is_a_move_of_a_second_per_radian() {
         let imp = Impedance::new(&cmd(20, 200, 0), &schedule(3), J).unwrap();
         let target = Angle::from_micro(300_000).unwrap();
         assert_eq!(
             imp.approach(Angle::from_micro(-500_000).unwrap()),
             Command::Move {
                 target,
-                duration_ms: 400
+                duration_ms: 800
             }
         );
         assert_eq!(
             imp.approach(Angle::ZERO),
             Command::Move {
                 target,
-                duration_ms: 150
+                duration_ms: 300
             }
         );
         assert_eq!(
