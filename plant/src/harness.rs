@@ -78,6 +78,9 @@ pub struct Scenario {
     /// An impedance command given instead of `command` after the hold (its target is the
     /// metrics' target).
     pub impedance: Option<ImpedanceCommand>,
+    /// Gravity arm m·g·l of the link, N·m (0: none): the link hangs straight down at
+    /// 0 rad, gravity pulls it back with −m·g·l·sin θ ([`LoadConfig::gravity_mgd_nm`]).
+    pub gravity_nm: f32,
 }
 
 impl Scenario {
@@ -101,6 +104,7 @@ impl Scenario {
             plant: Overrides::NONE,
             supervision: SupervisorConfig::DEFAULT,
             impedance: None,
+            gravity_nm: 0.0,
         }
     }
 }
@@ -434,6 +438,8 @@ pub fn plant_for(sc: &Scenario) -> Result<Plant, ControlError> {
         .plant
         .apply(&plant_config(&sc.design, &sc.config, sc.load_nm)?);
     pc.substeps = sc.substeps;
+    pc.load.gravity_mgd_nm = sc.gravity_nm;
+    pc.load.gravity_down_rad = 0.0;
     if let Some(d) = sc.disturbance {
         let at = i64::from(sc.settle_ticks) + i64::from(d.after_command_ticks);
         let mut profile = TorqueProfile::default();
