@@ -185,7 +185,9 @@ fn a_static_torque_deflects_the_link_by_torque_over_virtual_stiffness() {
 /// Off-nominal actuators whose static torque estimate stays within what one count at
 /// [`K_V_MIN`] allows; the others are the long run's (docs/design.md §11, "Impedance
 /// command").
-const OFF_NOMINAL: [&str; 11] = [
+const OFF_NOMINAL: [&str; 14] = [
+    "resistance=x0.8",
+    "resistance=x1.4",
     "supply=10.5V",
     "supply=12.6V",
     "back-emf=x0.9",
@@ -193,7 +195,8 @@ const OFF_NOMINAL: [&str; 11] = [
     "gear-inertia=x0.8",
     "gear-inertia=x1.25",
     "gear-friction=x0.5",
-    "resistance=x0.9",
+    "link-inertia=x0.5",
+    "link-inertia=x3",
     "torque-constant=x0.95",
     "current-gain=x1.05",
     "current-offset=5",
