@@ -2,16 +2,16 @@
 //! against the in-process fake board (`client::fake`) over `--tcp`: the wire values sent,
 //! and the refusal of a stiffness above the joint's explained with the board's figures.
 
-use std::process::{Command, Output};
+use std::process::Output;
 
 use client::fake::FakeBoard;
 use client::Request;
 
+mod common;
+
+/// Runs `vsa ARGS…` (the subcommand first).
 fn vsa(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vsa"))
-        .args(args)
-        .output()
-        .expect("run vsa")
+    common::vsa(args[0], &args[1..])
 }
 
 fn text(b: &[u8]) -> String {
@@ -50,7 +50,7 @@ fn bad_values_are_rejected_before_connecting() {
         ),
     ];
     for (args, want) in cases {
-        let mut a = vec!["--tcp", addr.as_str(), "impedance"];
+        let mut a = vec!["impedance", "--tcp", addr.as_str()];
         a.extend_from_slice(args);
         let out = vsa(&a);
         let err = text(&out.stderr);
@@ -68,8 +68,8 @@ fn against_the_fake_board() {
     let board = FakeBoard::start().unwrap();
     let addr = board.addr().to_string();
     let run = |args: &[&str]| {
-        let mut a = vec!["--tcp", addr.as_str()];
-        a.extend_from_slice(args);
+        let mut a = args.to_vec();
+        a.extend_from_slice(&["--tcp", addr.as_str()]);
         vsa(&a)
     };
     assert!(run(&["enable"]).status.success());
@@ -116,34 +116,27 @@ fn against_the_fake_board() {
 fn simulate_reports_the_deflection_at_rest() {
     // L = 5 mm (k = 57.3 N·m/rad), k_v = 20 N·m/rad, load +0.2 N·m, τ_ff = −0.1 N·m:
     // (0.2 − 0.1)/20 = 5 mrad.
-    let out = vsa(&[
+    let v = common::json(
         "simulate",
-        "--clutch-length",
-        "5mm",
-        "--load",
-        "0.2Nm",
-        "--impedance",
-        "0.3rad:20Nm/rad:0.2Nms/rad:-0.1Nm",
-        "--json",
-    ]);
-    assert!(out.status.success(), "{}", text(&out.stderr));
-    let json = text(&out.stdout);
-    let field = |k: &str| -> f64 {
-        let at = json.find(&format!("\"{k}\":")).expect(k) + k.len() + 3;
-        json[at..]
-            .split([',', '}'])
-            .next()
-            .unwrap()
-            .parse()
-            .unwrap()
-    };
+        &[
+            "--clutch-length",
+            "5mm",
+            "--load",
+            "0.2Nm",
+            "--impedance",
+            "0.3rad:20Nm/rad:0.2Nms/rad:-0.1Nm",
+        ],
+    );
     assert!(
-        (field("expected_deflection_rad") - 0.005).abs() < 1e-12,
-        "{json}"
+        (common::num(&v, "expected_deflection_rad") - 0.005).abs() < 1e-12,
+        "{v}"
     );
     let count = std::f64::consts::TAU / 4096.0;
-    assert!((field("deflection_rad") - 0.005).abs() <= count, "{json}");
-    assert!(json.contains("\"faults\":[]"), "{json}");
+    assert!(
+        (common::num(&v, "deflection_rad") - 0.005).abs() <= count,
+        "{v}"
+    );
+    assert_eq!(v["faults"], serde_json::json!([]), "{v}");
     // Stiffer than the beams: a one-line error, exit 2.
     let out = vsa(&[
         "simulate",

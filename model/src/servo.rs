@@ -470,6 +470,47 @@ mod tests {
     }
 
     #[test]
+    fn an_impedance_command_lasts_until_a_position_command_a_disable_or_a_fault() {
+        use crate::control::{ImpedanceCommand, ImpedanceError};
+        use crate::{Angle, Stiffness, Torque};
+        let imp = |k: i64| ImpedanceCommand {
+            target: Angle::from_micro(300_000).unwrap(),
+            stiffness: Stiffness::from_int(k),
+            damping: fixed::types::I32F32::from_num(0.2),
+            torque: Torque::ZERO,
+        };
+        let mut s = servo(); // L = 3 mm: k = 265.5 N·m/rad
+        s.enable().unwrap();
+        s.impedance(&imp(20)).unwrap();
+        assert_eq!(s.impedance_command(), Some(&imp(20)));
+        // The approach: a move to the target.
+        assert!(s.controller().trajectory().is_moving());
+        assert_eq!(
+            s.impedance(&imp(266)),
+            Err(ServoError::Impedance(
+                ImpedanceError::StiffnessAbovePhysical
+            ))
+        );
+        assert_eq!(
+            s.impedance_command(),
+            Some(&imp(20)),
+            "a refusal changes nothing"
+        );
+        s.command(Command::Hold).unwrap();
+        assert_eq!(s.impedance_command(), None);
+        s.impedance(&imp(20)).unwrap();
+        s.disable();
+        assert_eq!(s.impedance_command(), None);
+        s.enable().unwrap();
+        s.impedance(&imp(20)).unwrap();
+        let mut bad = QUIET;
+        bad.current_adc = 4095;
+        assert!(s.tick(&bad).new_fault.is_some());
+        assert_eq!(s.impedance_command(), None);
+        assert_eq!(s.impedance(&imp(20)), Err(ServoError::Faulted));
+    }
+
+    #[test]
     fn a_rejected_configuration_changes_nothing() {
         let mut s = servo();
         let before = s.supervisor().torque_capacity();
