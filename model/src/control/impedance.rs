@@ -10,14 +10,18 @@
 //!
 //! discretised backward Euler (stable for every d_v ≥ 0, no division per tick):
 //!
-//! > θ_eq = θ_t + (τ_ff − τ̂)/k_v,  θ_r ← θ_r + β·(θ_eq − θ_r),  β = k_v·Δt/(d_v + k_v·Δt)
+//! > θ_eq = θ_t + (τ_ff − τ̂)/k_v,  θ_r ← θ_r + β·(θ_eq − θ_r),  β = Δt/(T + Δt)
 //!
 //! so θ_r is θ_eq, the spring's equilibrium for the torque the beams carry, through a
-//! first-order lag of time constant d_v/k_v. At rest under an external torque τ the beams
-//! carry τ̂ = −τ and the link sits at θ_t + (τ_ff + τ)/k_v: the deflection τ/k_v. The
-//! position loop holds θ = θ_r, so the beams' limits, the supervisor and every clamp of
-//! the controller stay in force; a k_v above the beams' k would ask the loop to be
-//! stiffer than the joint and is refused.
+//! first-order lag of time constant T = max(d_v/k_v, 4/ω_c, 8·J_l·ω_c/k_v): the virtual
+//! dynamics are not made faster than the position loop (bandwidth ω_c) can follow, nor
+//! the loop through the link's own inertial torque J_l·θ̈ in τ̂ stronger than 1/8. At rest
+//! under an external torque τ the beams carry τ̂ = −τ and the link sits at
+//! θ_t + (τ_ff + τ)/k_v: the deflection τ/k_v. The position loop holds θ = θ_r (given as
+//! a stationary reference each tick), so the beams' limits, the supervisor and every clamp
+//! of the controller stay in force. A new target is first reached by a minimum-jerk move
+//! ([`Impedance::approach`]); the law starts when it ends. A k_v above the beams' k is
+//! refused: faster than the loop the joint is its beams whatever the loop does.
 //!
 //! Formats: angles I32F32 rad bits (`i64`, the controller's reference), torques through
 //! Q16 (±32 768 N·m, resolution 1.5e-5 N·m), 1/k_v and β as [`Gain`]s computed when the
@@ -118,7 +122,7 @@ pub struct Impedance {
     torque_q16: i32,
     /// 1/k_v, rad per N·m (Q16 in, Q32 out).
     inv_k: Gain,
-    /// β = k_v·Δt/(d_v + k_v·Δt), the lag's step per tick (Q16 in, Q32 out).
+    /// β = Δt/(T + Δt), the lag's step per tick (Q16 in, Q32 out).
     beta: Gain,
     /// θ_r, rad Q32.
     reference: i64,
@@ -161,7 +165,7 @@ impl Impedance {
             .checked_div(k_v)
             .and_then(Gain::new)
             .ok_or(ImpedanceError::StiffnessOutOfRange)?;
-        // Time constant T = max(d_v/k_v, N/ω_c) s; β = Δt/(T + Δt).
+        // Time constant T = max(d_v/k_v, 4/ω_c, 8·J_l·ω_c/k_v) s; β = Δt/(T + Δt).
         let t_virtual = I64F64::from_num(cmd.damping)
             .checked_div(k_v)
             .ok_or(ImpedanceError::DampingOutOfRange)?;
