@@ -309,6 +309,15 @@ impl Device for MockDevice {
         self.limits
     }
 
+    /// As the firmware: refused above the joint's stiffness; the fake link goes to the
+    /// target (no external torque on it).
+    fn impedance(&mut self, target_urad: i32, k: u32, _d: u32, _t: i32) -> Result<(), ErrorCode> {
+        if k > self.stiffness_mnm_per_rad {
+            return Err(ErrorCode::OutOfRange);
+        }
+        self.motion_to(target_urad)
+    }
+
     fn persisting_fault(&mut self) -> Option<FaultRecord> {
         let link = self.link_urad();
         (self.faults.contains(FaultCode::PositionLimit) && !self.within_window(link)).then_some(

@@ -30,6 +30,7 @@ pub const fn request_name(req: &Request) -> &'static str {
         Request::Load => "load",
         Request::FactoryReset => "factory-reset",
         Request::FaultsLog { .. } => "faults-log",
+        Request::Impedance { .. } => "impedance",
     }
 }
 

@@ -107,6 +107,22 @@ pub trait Device {
     /// [`Request::GetLimits`]: the limits and the position window in force.
     fn limits(&mut self) -> Limits;
 
+    /// [`Request::Impedance`]: hold `target_urad` µrad with virtual stiffness
+    /// `stiffness_mnm_per_rad` mN·m/rad, damping `damping_unms_per_rad` µN·m·s/rad and
+    /// feed-forward torque `torque_unm` µN·m.
+    ///
+    /// # Errors
+    /// [`ErrorCode::NotAllowed`] when not enabled; [`ErrorCode::OutOfRange`] for a
+    /// stiffness above the joint's at the clutch setting or a target outside the position
+    /// window.
+    fn impedance(
+        &mut self,
+        target_urad: i32,
+        stiffness_mnm_per_rad: u32,
+        damping_unms_per_rad: u32,
+        torque_unm: i32,
+    ) -> Result<(), ErrorCode>;
+
     /// [`Request::GetStatus`]: the current status (`protocol_errors` is overwritten by the
     /// handler).
     fn status(&mut self) -> Status;
@@ -391,6 +407,17 @@ impl Handler {
             Request::FaultsLog { index } => dev
                 .faults_log(index)
                 .map(|(count, entry)| Reply::FaultsLog { count, entry }),
+            Request::Impedance {
+                target_urad,
+                stiffness_mnm_per_rad,
+                damping_unms_per_rad,
+                torque_unm,
+            } => done(dev.impedance(
+                target_urad,
+                stiffness_mnm_per_rad,
+                damping_unms_per_rad,
+                torque_unm,
+            )),
         }
     }
 

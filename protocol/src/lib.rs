@@ -46,6 +46,7 @@
 //! | `_hz` | hertz (telemetry rate) | `u16` |
 //! | `_ma` | milliampere (motor current) | `i16`/`u16` |
 //! | `_unm` | µN·m (torque) | `i32`/`u32` |
+//! | `_unms_per_rad` | µN·m·s/rad (damping) | `u32` |
 //! | `_permille` | ‰ (PWM duty: ±1000 = ± the supply; ratios) | `i16`/`u16` |
 //! | gains | 10⁻³ of the controller's units (see [`Gains`]) | `u64` |
 //!
@@ -169,6 +170,15 @@ pub const STIFFNESS_MIN_MNM_PER_RAD: u32 = 1;
 /// (φ_b + θ_cap(L) + the pot's calibration tolerance: 67 mrad at L = 8 mm; checked by the
 /// service's tests). A device also refuses a target outside its configured position window.
 pub const TARGET_MAX_URAD: u32 = 2_540_000;
+
+/// Smallest virtual stiffness of [`Request::Impedance`], mN·m/rad (0.1 N·m/rad: 1/k_v
+/// must fit the controller's format). The largest is the joint stiffness at the clutch
+/// setting, the device's check.
+pub const IMPEDANCE_STIFFNESS_MIN_MNM_PER_RAD: u32 = 100;
+/// Largest virtual damping of [`Request::Impedance`], µN·m·s/rad (100 N·m·s/rad).
+pub const IMPEDANCE_DAMPING_MAX_UNMS_PER_RAD: u32 = 100_000_000;
+/// Largest |feed-forward torque| of [`Request::Impedance`], µN·m (100 N·m).
+pub const IMPEDANCE_TORQUE_MAX_UNM: u32 = 100_000_000;
 
 /// Move duration range, ms: 1 ms – 60 s.
 pub const MOVE_DURATION_MIN_MS: u32 = 1;

@@ -6,7 +6,8 @@
 use serde::{Deserialize, Serialize};
 
 use crate::{
-    CLUTCH_MAX_UM, CLUTCH_MIN_UM, CURRENT_LIMIT_MAX_MA, KD_MAX, KI_MAX, KP_MAX,
+    CLUTCH_MAX_UM, CLUTCH_MIN_UM, CURRENT_LIMIT_MAX_MA, IMPEDANCE_DAMPING_MAX_UNMS_PER_RAD,
+    IMPEDANCE_STIFFNESS_MIN_MNM_PER_RAD, IMPEDANCE_TORQUE_MAX_UNM, KD_MAX, KI_MAX, KP_MAX,
     MOTOR_TORQUE_LIMIT_MAX_UNM, MOVE_DURATION_MAX_MS, MOVE_DURATION_MIN_MS,
     SINE_AMPLITUDE_MAX_URAD, SINE_FREQUENCY_MAX_MHZ, SINE_FREQUENCY_MIN_MHZ,
     STIFFNESS_MIN_MNM_PER_RAD, TARGET_MAX_URAD, TELEMETRY_RATE_MAX_HZ, TELEMETRY_RATE_MIN_HZ,
@@ -116,6 +117,22 @@ pub enum Request {
     FaultsLog {
         /// Which entry, 0 = the most recent; beyond the log's length the reply has none.
         index: u8,
+    },
+    /// Hold the link at `target_urad` as a spring-damper: virtual stiffness, virtual
+    /// damping and a feed-forward torque (the link first moves to the target, then the
+    /// coupling torque follows k_v·(θ_t − θ) − d_v·θ̇ + τ_ff), until the next motion
+    /// command or [`Request::Hold`]. The device refuses a stiffness above the beams' at
+    /// the clutch setting with [`ErrorCode::OutOfRange`].
+    Impedance {
+        /// Target link angle θ_t, µrad, |·| ≤ [`TARGET_MAX_URAD`].
+        target_urad: i32,
+        /// Virtual stiffness k_v, mN·m/rad, ≥ [`IMPEDANCE_STIFFNESS_MIN_MNM_PER_RAD`] and
+        /// at most the joint stiffness at the clutch setting (the device's check).
+        stiffness_mnm_per_rad: u32,
+        /// Virtual damping d_v, µN·m·s/rad, ≤ [`IMPEDANCE_DAMPING_MAX_UNMS_PER_RAD`].
+        damping_unms_per_rad: u32,
+        /// Feed-forward torque τ_ff, µN·m, |·| ≤ [`IMPEDANCE_TORQUE_MAX_UNM`].
+        torque_unm: i32,
     },
 }
 
@@ -248,6 +265,17 @@ impl Request {
                 duty_permille,
                 duration_ms,
             } => crate::sensors::nudge_ok(duty_permille, duration_ms),
+            Request::Impedance {
+                target_urad,
+                stiffness_mnm_per_rad,
+                damping_unms_per_rad,
+                torque_unm,
+            } => {
+                target_ok(target_urad)
+                    && stiffness_mnm_per_rad >= IMPEDANCE_STIFFNESS_MIN_MNM_PER_RAD
+                    && damping_unms_per_rad <= IMPEDANCE_DAMPING_MAX_UNMS_PER_RAD
+                    && torque_unm.unsigned_abs() <= IMPEDANCE_TORQUE_MAX_UNM
+            }
         };
         if ok {
             Ok(())

@@ -169,6 +169,12 @@ fn largest_requests() -> Vec<Request> {
         Request::Load,
         Request::FactoryReset,
         Request::FaultsLog { index: u8::MAX },
+        Request::Impedance {
+            target_urad: i32::MIN,
+            stiffness_mnm_per_rad: u32::MAX,
+            damping_unms_per_rad: u32::MAX,
+            torque_unm: i32::MIN,
+        },
     ]
 }
 

@@ -35,6 +35,7 @@ use protocol::{
 use rtic_core::Mutex;
 
 pub mod dynamixel;
+mod impedance;
 pub mod line;
 pub mod link;
 pub mod sensors;
@@ -421,7 +422,9 @@ fn limits_of(config: &Config, supervision: &SupervisorConfig) -> Limits {
 fn refused(e: ServoError) -> ErrorCode {
     match e {
         ServoError::Faulted => ErrorCode::NotAllowed,
-        ServoError::Control(_) | ServoError::Supervisor(_) => ErrorCode::OutOfRange,
+        ServoError::Control(_) | ServoError::Supervisor(_) | ServoError::Impedance(_) => {
+            ErrorCode::OutOfRange
+        }
     }
 }
 
@@ -601,6 +604,10 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
             amplitude: Angle::from_bits(micro_to_q32(amplitude_urad.into())),
             frequency,
         })
+    }
+
+    fn impedance(&mut self, target: i32, k: u32, d: u32, torque: i32) -> Result<(), ErrorCode> {
+        impedance::apply(self, target, k, d, torque)
     }
 
     fn hold(&mut self) -> Result<(), ErrorCode> {

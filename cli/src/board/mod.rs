@@ -6,6 +6,7 @@
 
 pub mod bus;
 mod config;
+mod impedance;
 mod quantities;
 pub mod sensors;
 pub mod serve;
@@ -475,6 +476,9 @@ pub enum BoardCommand {
     },
     /// Stop any motion and hold the current reference
     Hold,
+    /// Hold an angle as a spring-damper softer than the clutch setting, e.g.
+    /// `impedance 0.3rad --stiffness 20Nm/rad --damping 0.2Nms/rad [--torque 0.1Nm]`
+    Impedance(impedance::ImpedanceArgs),
     /// Explicit PID gains (`--kp 800 --ki 2000 --kd 20`), or `--auto` for the scheduled ones
     Gains(GainsArgs),
     /// Live limits and the position window; options not given take their defaults
@@ -568,6 +572,7 @@ enum Action {
         frequency_mhz: u32,
     },
     Hold,
+    Impedance(impedance::Plan),
     Gains(Option<Gains>),
     Limits(Limits),
     Wait(Duration),
@@ -607,6 +612,7 @@ fn plan(cmd: &BoardCommand) -> CliResult<Action> {
         BoardCommand::Hold => Action::Hold,
         BoardCommand::Config(c) => Action::Config(*c),
         BoardCommand::Faults(f) => Action::Faults(*f),
+        BoardCommand::Impedance(a) => Action::Impedance(impedance::plan(a)?),
         BoardCommand::Gains(g) => Action::Gains(plan_gains(g)?),
         BoardCommand::Limits(l) => Action::Limits(plan_limits(l)?),
         BoardCommand::Wait { duration } => {
@@ -778,6 +784,7 @@ fn exec(action: &Action, s: &mut Session) -> CliResult<()> {
         Action::Record { span, rate, csv } => return record(s, *span, *rate, csv.as_ref()),
         Action::Config(cmd) => config::config(c, *cmd),
         Action::Faults(args) => config::faults(c, *args),
+        Action::Impedance(p) => return impedance::run(s, p),
     };
     match r {
         Ok(text) => {

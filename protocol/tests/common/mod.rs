@@ -163,6 +163,18 @@ pub fn request() -> impl Strategy<Value = Request> {
         Just(Request::Load),
         Just(Request::FactoryReset),
         any::<u8>().prop_map(|index| Request::FaultsLog { index }),
+        (
+            angle(),
+            edge_u32(0, 10_000_000),
+            edge_u32(0, 200_000_000),
+            angle()
+        )
+            .prop_map(|(target_urad, k, d, t)| Request::Impedance {
+                target_urad,
+                stiffness_mnm_per_rad: k,
+                damping_unms_per_rad: d,
+                torque_unm: t.saturating_mul(64),
+            }),
     ]
 }
 
@@ -193,6 +205,7 @@ pub fn request_index(r: &Request) -> u32 {
         Request::Load => 21,
         Request::FactoryReset => 22,
         Request::FaultsLog { .. } => 23,
+        Request::Impedance { .. } => 24,
     }
 }
 
@@ -372,6 +385,7 @@ pub enum Call {
     Load,
     FactoryReset,
     FaultsLog(u8),
+    Impedance(i32, u32, u32, i32),
 }
 
 /// A device that records every call and keeps a little state, refusing like the
@@ -574,6 +588,25 @@ impl Device for MockDevice {
         self.limits
     }
 
+    fn impedance(
+        &mut self,
+        target_urad: i32,
+        stiffness_mnm_per_rad: u32,
+        damping_unms_per_rad: u32,
+        torque_unm: i32,
+    ) -> Result<(), ErrorCode> {
+        self.calls.push(Call::Impedance(
+            target_urad,
+            stiffness_mnm_per_rad,
+            damping_unms_per_rad,
+            torque_unm,
+        ));
+        if stiffness_mnm_per_rad > self.stiffness_mnm_per_rad {
+            return Err(ErrorCode::OutOfRange);
+        }
+        self.motion()
+    }
+
     fn persisting_fault(&mut self) -> Option<FaultRecord> {
         self.persisting
     }
@@ -670,6 +703,17 @@ pub fn expected_call(r: &Request) -> Option<Call> {
         Request::Load => Call::Load,
         Request::FactoryReset => Call::FactoryReset,
         Request::FaultsLog { index } => Call::FaultsLog(index),
+        Request::Impedance {
+            target_urad,
+            stiffness_mnm_per_rad,
+            damping_unms_per_rad,
+            torque_unm,
+        } => Call::Impedance(
+            target_urad,
+            stiffness_mnm_per_rad,
+            damping_unms_per_rad,
+            torque_unm,
+        ),
     })
 }
 
