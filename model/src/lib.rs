@@ -46,6 +46,7 @@
 
 pub mod backlash;
 pub mod beam;
+pub mod calibration;
 pub mod control;
 pub mod design;
 pub mod dynamics;
