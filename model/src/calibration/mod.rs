@@ -3,3 +3,4 @@
 //! sequence that finds what it needs ([`sequence`]).
 
 pub mod correction;
+pub mod sequence;
