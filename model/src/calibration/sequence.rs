@@ -8,8 +8,8 @@
 //!
 //! Phases: rest (motor off: current offset and noise, pot noise and rails) → nudge (duty
 //! ramped from 0 until a sensor moves: motor polarity, pot direction, dead sensors) →
-//! three moves at a constant duty from rest, each ended by the pot at a target angle
-//! (−, +, back to the middle; each start gives R from the first ticks' current and the
+//! nine moves at a constant duty from rest, each ended by the pot at a target angle
+//! (−, +, −, … back to the middle; each start gives R from the first ticks' current and the
 //! total inertia from the current's transient, each steady part k_e, the friction current
 //! and the pot's slope and offset against the encoder) → done.
 //!
@@ -47,14 +47,16 @@ const NUDGE_ENC: i32 = 40;
 const STILL_ENC: i32 = 4;
 /// Pot counts below which the pot is said not to have moved.
 const STILL_POT: i32 = 3;
-/// Ticks after a move's start over which the current transient is integrated.
-const TRANSIENT_TICKS: u32 = 150;
 /// First tick of a move's steady part.
 const STEADY_FROM: u32 = 160;
 /// A move must last this long for its steady part to count.
 const MIN_STEADY: u32 = 100;
 /// Longest move, ticks.
 const MOVE_TIMEOUT: u32 = 4000;
+/// Moves: alternately to −0.6 and +0.6 rad, the last back to the middle. The inertia is
+/// the average over them (one move's current transient carries about one ADC count of
+/// rounding per tick, a percent of the total inertia).
+const MOVES: usize = 9;
 /// Target of the outer moves: ±0.6 rad of gear angle, in pot counts (0.6·1024/(300°·π/180)).
 const TARGET_POT: i32 = 117;
 /// Largest standard deviation at rest, counts: current sense and pot (the sensors' spec,
@@ -270,8 +272,13 @@ struct Move {
     /// Current (counts from the offset, canonical sign) at ticks 1 and 2.
     i1: i64,
     i2: i64,
-    /// Σ current over the transient window.
-    sum_transient: i64,
+    /// Σ current since the start (cumulative charge, counts·ms).
+    cum_i: i64,
+    /// Over the steady part: Σ of the cumulative charge, of the driven ticks and of the
+    /// encoder since the start (the momentum balance averaged over the link's ringing).
+    sum_cum: i64,
+    sum_t: i64,
+    sum_enc: i64,
     /// Steady part: ticks, Σ current, canonical encoder at its start.
     n_ss: i64,
     sum_i_ss: i64,
@@ -321,7 +328,7 @@ pub struct Calibration {
     // Found signs (canonical = sign × raw motion).
     motor: Sign,
     pot_dir: Sign,
-    moves: [Move; 3],
+    moves: [Move; MOVES],
     result: Option<CalibrationResult>,
 }
 
@@ -349,7 +356,7 @@ impl Calibration {
             enc_nudge0: 0,
             motor: Sign::Plus,
             pot_dir: Sign::Plus,
-            moves: [Move::default(); 3],
+            moves: [Move::default(); MOVES],
             result: None,
         }
     }
@@ -540,10 +547,12 @@ impl Calibration {
     fn target(&self, index: u8) -> i64 {
         let centre = (i64::from(POT_COUNTS / 2) - self.pot_rest) * i64::from(self.pot_dir.value());
         centre
-            + match index {
-                0 => -i64::from(TARGET_POT),
-                1 => i64::from(TARGET_POT),
-                _ => 0,
+            + if usize::from(index) + 1 == MOVES {
+                0
+            } else if index % 2 == 0 {
+                -i64::from(TARGET_POT)
+            } else {
+                i64::from(TARGET_POT)
             }
     }
 
@@ -583,8 +592,8 @@ impl Calibration {
         } else if k == 3 {
             m.i2 = i;
         }
-        if (2..TRANSIENT_TICKS + 2).contains(&k) {
-            m.sum_transient += i;
+        if k >= 2 {
+            m.cum_i += i;
         }
         if k == STEADY_FROM {
             m.enc_ss0 = enc;
@@ -599,10 +608,17 @@ impl Calibration {
             m.sxy += x * y;
             m.syy += y * y;
             m.enc_last = enc;
+            m.sum_cum += m.cum_i;
+            m.sum_t += i64::from(k - 1);
+            m.sum_enc += enc - m.enc0;
         }
         self.progress = Progress::Running {
-            phase: 3 + index.min(1),
-            percent: 20 + 25 * index + (k.min(800) * 25 / 800) as u8,
+            phase: if usize::from(index) + 1 == MOVES {
+                4
+            } else {
+                3
+            },
+            percent: (20 + (75 * u32::from(index) + k.min(800) * 75 / 800) / MOVES as u32) as u8,
         };
         let reached = if m.dir > 0 {
             here >= target
@@ -610,17 +626,10 @@ impl Calibration {
             here <= target
         };
         if reached {
-            if index == 2 {
-                self.phase = Phase::Pause {
-                    left: PAUSE_TICKS,
-                    next: 3,
-                };
-            } else {
-                self.phase = Phase::Pause {
-                    left: PAUSE_TICKS,
-                    next: index + 1,
-                };
-            }
+            self.phase = Phase::Pause {
+                left: PAUSE_TICKS,
+                next: index + 1,
+            };
             return Some(0);
         }
         if k > MOVE_TIMEOUT {
@@ -673,15 +682,16 @@ impl Calibration {
             // k_e [µV·s/rad] = (V − R·i)/ω.
             let ri_uv = r_mohm * i_ss / PER_A / 1000;
             ke_sum += (dir * v_mv * 1000 - ri_uv) * 1_000_000 / w_urad;
-            // Momentum at the steady speed, pN·m·s: k_t·∫(i − i_ss)dt (trapezoid from
-            // the extrapolated i(0)) plus the viscous torque's share b·∫(ω_ss − ω)dt
-            // (the position the move lost to its start, from the encoder).
+            // Momentum at the steady speed, pN·m·s, averaged over the steady part (the
+            // link rings on the beams): k_t·∫(i − i_ss)dt (trapezoid from the
+            // extrapolated i(0)) plus the viscous torque's share b·∫(ω_ss − ω)dt (the
+            // position the move lost to its start, from the encoder).
             let i0 = 2 * i128::from(m.i1) - i128::from(m.i2);
-            let excess = (i128::from(m.sum_transient) * 1_000_000 + i0 * 500_000)
-                - i_ss * (i128::from(TRANSIENT_TICKS) * 1000 + 500) / 1000;
+            let mean_cum = i128::from(m.sum_cum) * 1_000_000 / n; // counts·ms ×10⁶
+            let mean_t_milli = i128::from(m.sum_t) * 1000 / n; // ms ×10³
+            let excess = mean_cum + i0 * 500_000 - i_ss * mean_t_milli / 1000;
             let p_i = (kt_q32 * excess * 1000 / PER_A) >> 32;
-            let lost_milli = d_enc * i128::from(STEADY_FROM - 1) * 1000 / n
-                - i128::from(m.enc_ss0 - m.enc0) * 1000;
+            let lost_milli = d_enc * mean_t_milli / n - i128::from(m.sum_enc) * 1000 / n; // counts ×10³
             let p_b = (b_q32 * lost_milli * nrad / 1000) >> 32;
             j_sum += (p_i + p_b) * 1000 / w_urad; // kg·m² ×10⁹
             n_used += 1;
