@@ -549,7 +549,7 @@ impl Calibration {
         centre
             + if usize::from(index) + 1 == MOVES {
                 0
-            } else if index % 2 == 0 {
+            } else if index.is_multiple_of(2) {
                 -i64::from(TARGET_POT)
             } else {
                 i64::from(TARGET_POT)
