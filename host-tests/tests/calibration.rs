@@ -247,3 +247,109 @@ fn broken_builds_end_with_the_motor_off_and_the_right_message() {
         assert!(out.peak_stress_ratio < 1.0);
     }
 }
+
+/// After calibration the correction makes a miswired build behave like the nominal one:
+/// every sign reversed, offsets and gains off, the link anywhere at power-up; the servo
+/// (configured nominally) runs on the corrected readings and the bridge gets the corrected
+/// duty. A 0.5 rad minimum-jerk move then meets the closed-loop limits of
+/// `closed_loop.rs` (overshoot ≤ 5 %, settled within ±1 count, beams below σ_allow).
+#[test]
+fn a_calibrated_miswired_build_moves_like_the_nominal_one() {
+    use model::calibration::correction::Corrector;
+    use model::servo::{BridgeDemand, Servo};
+    use model::supervisor::SupervisorConfig;
+    let design = Design::paper();
+    let config = Config::paper(Length::from_int(3));
+    let mut pc = plant_config(&design, &config, 0.0).unwrap();
+    pc.motor.polarity = -1.0;
+    pc.sensors.pot_direction = -1.0;
+    pc.sensors.pot_center_counts = 530.0;
+    pc.sensors.pot_gain = 1.06;
+    pc.sensors.current_offset_counts = -250.0;
+    pc.sensors.current_gain = 1.0;
+    pc.sensors.encoder_zero_counts = 3000;
+    pc.sensors.pot_noise_counts = 0.3;
+    pc.sensors.current_noise_counts = 1.0;
+    pc.power_up_angle_rad = 0.8;
+    let mut plant = Plant::new(pc);
+    let out = run(&mut plant, &design);
+    assert_eq!(out.progress, Progress::Done);
+    let mut correction = out.cal.result().unwrap().correction;
+    // The pot's centre is the absolute zero: this build's pot reads 530 there.
+    correction.pot_center_q16 = 530 << 16;
+    let mut corrector = Corrector::new(&correction).unwrap();
+    // Power-up again somewhere else (the calibration left the link near the middle).
+    // With the closed-loop tests' 0.3 N·m load (a free link limit-cycles in the free
+    // play, docs/design.md §9).
+    let mut loaded = PlantConfig {
+        power_up_angle_rad: -0.6,
+        ..pc
+    };
+    loaded.load.constant_nm = -0.3;
+    let mut plant = Plant::new(loaded);
+    // Hanging on the beams at power-up (as `plant::harness::plant_for` preloads).
+    let c = loaded.coupling;
+    let phi = c.free_play_rad + 0.3 / c.stiffness_nm_per_rad;
+    plant.set_state(-0.6 + f64::from(phi), 0.0, -0.6, 0.0);
+    let mut servo = Servo::new(&design, &config, &SupervisorConfig::DEFAULT).unwrap();
+    let sigma = allowable_stress_pa(&design);
+    let (mut peak, mut ticks_on, mut max_angle) = (0.0f64, 0, f64::MIN);
+    // The servo's frame is the pot's (aligned at power-up): the move is checked relative
+    // to the true angle when it starts, to the link's ±1 count plus the hold's ±1.
+    let mut target = f64::NAN;
+    let mut last_far = 0;
+    let band = std::f64::consts::TAU / 4096.0 * 2.0;
+    for tick in 0..3000 {
+        let r = plant.readings();
+        let raw = TickInput {
+            link_encoder: r.link_encoder,
+            gear_pot: Some(r.gear_pot),
+            current_adc: r.current_adc,
+            read_error: None,
+        };
+        let Some(input) = corrector.input(&raw) else {
+            plant.step_tick_cmd(BridgeCommand::Coast);
+            continue;
+        };
+        if ticks_on == 0 {
+            servo.enable().unwrap();
+        }
+        if ticks_on == 300 {
+            // The servo's frame is the pot's, aligned within the free play: the move is
+            // relative, from where the link is held.
+            target = plant.state().link_angle_rad + 0.5;
+            let at = servo.controller().trajectory().target();
+            servo
+                .command(model::Command::Move {
+                    target: model::Angle::from_bits(at.to_bits() + (1i64 << 31)),
+                    duration_ms: 300,
+                })
+                .unwrap();
+        }
+        ticks_on += 1;
+        let o = servo.tick(&input);
+        assert!(o.new_fault.is_none(), "tick {tick}: {:?}", o.new_fault);
+        let cmd = match o.bridge {
+            BridgeDemand::Drive(d) => BridgeCommand::Drive(corrector.duty(d)),
+            BridgeDemand::Off => BridgeCommand::Coast,
+        };
+        plant.step_tick_cmd(cmd);
+        let st = plant.state();
+        peak = peak.max(f64::from(st.beam_stress_pa).abs() / sigma);
+        if ticks_on > 300 {
+            max_angle = max_angle.max(st.link_angle_rad);
+            if (st.link_angle_rad - target).abs() > band {
+                last_far = ticks_on;
+            }
+        }
+    }
+    let overshoot = (max_angle - target).max(0.0) / 0.5 * 100.0;
+    let end = plant.state().link_angle_rad;
+    println!(
+        "after calibration: link {end:.4} rad (target {target:.4}), overshoot {overshoot:.2} %, settled {} ms after the command, peak {peak:.3} σ_allow",
+        last_far - 300
+    );
+    assert!(overshoot <= 5.0);
+    assert!((end - target).abs() <= band);
+    assert!(peak < 1.0);
+}

@@ -15,8 +15,8 @@
 //!   confirmed (compliance within [`CONFIRM_RATIO`] of the configured one), τ_cap(L)·
 //!   [`CONFIRM_RATIO`]^(−1/3) (the longest clutch that compliance allows);
 //! * [`FaultCode::ClutchMismatch`](crate::supervisor::FaultCode::ClutchMismatch) when the
-//!   compliance exceeds [`MISMATCH_RATIO`] × the configured one (k below 80 %: the clutch
-//!   about 8 % longer than configured).
+//!   compliance stays above [`MISMATCH_RATIO`] × the configured one (k below 80 %: the
+//!   clutch about 8 % longer than configured) for 64 consecutive ticks.
 //!
 //! Evidence: a decision needs Σλⁿτ² ≥ (τ_ev)²·256, τ_ev the torque that deflects the
 //! configured beams by one pot count: the torque must have been large enough, for about
@@ -36,8 +36,15 @@ pub const CONFIRM_RATIO: i64 = 72_090;
 const FORGET: u32 = 8;
 /// Low-pass shift of φ and τ before the regression (α = 1/16).
 const SMOOTH: u32 = 4;
-/// The evidence torque is one pot count of deflection over this.
-const EVIDENCE_DIV: i128 = 1;
+/// Bounds of the regression's samples: |τ| ≤ 4 N·m (Q12: 2¹⁴), |φ_e| ≤ 0.125 rad (Q16:
+/// 2¹³). With them |τ·φ| < 2²⁷ and τ² ≤ 2²⁸ fit an i32, the sums stay below 2³⁶
+/// (2⁸ samples' worth), s_tp·2²⁴ below 2⁶⁰ and a threshold (< 2²³) times s_tt below 2⁵⁹:
+/// plain i64 arithmetic, no overflow (the clamps make the bounds hold).
+const TAU_MAX_Q12: i32 = 1 << 14;
+const PHI_MAX_Q16: i32 = 1 << 13;
+/// Consecutive ticks the estimate must stay beyond the mismatch ratio (a violent
+/// transient, e.g. a raw step's impacts, is not evidence).
+const MISMATCH_TICKS: u16 = 64;
 
 /// What the monitor concluded so far.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -54,17 +61,18 @@ pub enum ClutchState {
 /// Constants derived from the schedule (configuration time).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ClutchLimits {
-    /// Configured compliance 1/k, rad per N·m, Q16 (at least 1).
-    compliance_q16: i64,
+    /// Configured compliance 1/k, rad per N·m × 2²⁸ (the regression's φ Q16 over τ Q12,
+    /// × 2²⁴), at most 2²³ (k ≥ 32 N·m/rad).
+    compliance_28: i64,
+    /// `MISMATCH_RATIO` and `CONFIRM_RATIO` × `compliance_28`.
+    mismatch_28: i64,
+    confirm_28: i64,
     /// Free play φ_b, rad Q16.
     free_play_q16: i32,
     /// |τ| below which the beams may be anywhere in the free play, N·m Q16.
     contact_q16: i32,
-    /// Least Σλⁿτ² for a decision (Q32 N·m²).
+    /// Least Σλⁿτ² for a decision, N·m² Q24.
     evidence: i64,
-    /// MISMATCH_RATIO·1/k and CONFIRM_RATIO·1/k, rad per N·m, Q16.
-    mismatch_q16: i64,
-    confirm_q16: i64,
     /// Capacity while undecided and once confirmed, I32F32 N·m.
     cap_weak: i64,
     cap_confirmed: i64,
@@ -91,20 +99,16 @@ impl ClutchLimits {
         } else {
             ((i128::from(cap) * 63_486) >> 16) as i64
         };
-        // k is I64F64 N·m/rad; compliance Q16 = 2^80 / k_bits.
+        // k is I64F64 N·m/rad: 1/k × 2²⁸ = 2⁹²/k_bits.
         let k_bits = sched.stiffness().to_bits().max(1);
-        let compliance_q16 = ((1i128 << 80) / k_bits).clamp(1, i128::from(i32::MAX)) as i64;
-        // τ_ev = one pot count · k, N·m Q16; evidence = τ_ev²·2^FORGET.
-        let pot_q16 = i128::from(POT_COUNT_Q32 >> 16);
-        let tau_ev =
-            ((pot_q16 << 16) / i128::from(compliance_q16) / EVIDENCE_DIV).min(i128::from(i32::MAX));
-        let evidence = (tau_ev * tau_ev)
-            .saturating_mul(1 << FORGET)
-            .min(i128::from(i64::MAX)) as i64;
+        let compliance_28 = ((1i128 << 92) / k_bits).clamp(1, 1 << 23) as i64;
+        // τ_ev (Q12) = one pot count / c = POT_COUNT_Q32·2⁸ / c₂₈; evidence τ_ev²·2^FORGET.
+        let tau_ev = (i128::from(POT_COUNT_Q32) << 8) / i128::from(compliance_28);
+        let evidence = (tau_ev * tau_ev * (1 << FORGET)).min(1 << 40) as i64;
         ClutchLimits {
-            compliance_q16,
-            mismatch_q16: (compliance_q16 * MISMATCH_RATIO) >> 16,
-            confirm_q16: (compliance_q16 * CONFIRM_RATIO) >> 16,
+            compliance_28,
+            mismatch_28: (compliance_28 * MISMATCH_RATIO) >> 16,
+            confirm_28: (compliance_28 * CONFIRM_RATIO) >> 16,
             free_play_q16: (sched.free_play().to_bits() >> 16) as i32,
             contact_q16: sched.contact_torque_q16.max(1 << 11),
             evidence,
@@ -123,8 +127,11 @@ pub struct ClutchMonitor {
     phi_f: i32,
     tau_f: i32,
     w_prev: i32,
+    /// Σλⁿτ² (N·m² Q24) and Σλⁿτφ (N·m·rad Q28).
     s_tt: i64,
     s_tp: i64,
+    /// Consecutive ticks beyond the mismatch ratio.
+    beyond: u16,
 }
 
 impl Default for ClutchMonitor {
@@ -144,6 +151,7 @@ impl ClutchMonitor {
             w_prev: 0,
             s_tt: 0,
             s_tp: 0,
+            beyond: 0,
         }
     }
 
@@ -154,12 +162,12 @@ impl ClutchMonitor {
     }
 
     /// The estimated compliance relative to the configured one, Q16 (`None` without
-    /// enough evidence).
+    /// enough evidence). Divides: for reports, not the per-tick path.
     #[must_use]
     pub fn ratio_q16(&self, lim: &ClutchLimits) -> Option<i64> {
         (self.s_tt >= lim.evidence && self.s_tt > 0).then(|| {
-            let c = (i128::from(self.s_tp) << 16) / i128::from(self.s_tt);
-            ((c << 16) / i128::from(lim.compliance_q16)) as i64
+            let num = i128::from(self.s_tp) << 40;
+            (num / (i128::from(self.s_tt) * i128::from(lim.compliance_28))) as i64
         })
     }
 
@@ -176,22 +184,22 @@ impl ClutchMonitor {
     /// controller's output (current, gear velocity). Returns true while the mismatch
     /// holds (from the tick it is found until the monitor is reset).
     pub fn update(&mut self, phi_q32: i64, out: &Output, lim: &ClutchLimits) -> bool {
+        if self.state == ClutchState::Mismatch {
+            // A condition: it holds until the monitor is reset (a new configuration).
+            return true;
+        }
         let i_q16 = (out.current.to_bits() >> 16) as i32;
         let w_q16 = (out.gear_velocity.to_bits() >> 16) as i32;
-        let dw = w_q16.saturating_sub(self.w_prev);
+        let dw = w_q16.wrapping_sub(self.w_prev);
         self.w_prev = w_q16;
         let tau = lim.kt.apply(i_q16).saturating_sub(lim.jg_dt.apply(dw));
-        let phi = (phi_q32 >> 16).clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+        let phi = (phi_q32 >> 16).clamp(-(1 << 20), 1 << 20) as i32;
         self.tau_f = self
             .tau_f
             .saturating_add(tau.saturating_sub(self.tau_f) >> SMOOTH);
         self.phi_f = self
             .phi_f
             .saturating_add(phi.saturating_sub(self.phi_f) >> SMOOTH);
-        if self.state == ClutchState::Mismatch {
-            // A condition: it holds until the monitor is reset (a new configuration).
-            return true;
-        }
         if self.tau_f.saturating_abs() < lim.contact_q16 {
             return false;
         }
@@ -201,21 +209,25 @@ impl ClutchMonitor {
         } else {
             self.phi_f.saturating_add(lim.free_play_q16)
         };
-        let (t, p) = (i64::from(self.tau_f), i64::from(phi_e));
-        self.s_tt = (self.s_tt - (self.s_tt >> FORGET)).saturating_add(t * t);
-        self.s_tp = (self.s_tp - (self.s_tp >> FORGET)).saturating_add(t * p);
+        let t = (self.tau_f >> 4).clamp(-TAU_MAX_Q12, TAU_MAX_Q12);
+        let p = phi_e.clamp(-PHI_MAX_Q16, PHI_MAX_Q16);
+        self.s_tt = self.s_tt - (self.s_tt >> FORGET) + i64::from(t * t);
+        self.s_tp = self.s_tp - (self.s_tp >> FORGET) + i64::from(t * p);
         if self.s_tt < lim.evidence {
             return false;
         }
-        // c = s_tp/s_tt against r·c_cfg without dividing: s_tp·2¹⁶ vs (r·c_cfg)·s_tt
-        // (|s_tp| < 2⁴⁰ and r·c_cfg < 2¹⁴ at the paper's softest beams: no overflow,
-        // saturating anyway).
-        let lhs = self.s_tp.saturating_mul(1 << 16);
-        if lhs > lim.mismatch_q16.saturating_mul(self.s_tt) {
-            self.state = ClutchState::Mismatch;
-            return true;
+        // c = s_tp/s_tt against r·c_cfg without dividing (bounds at `TAU_MAX_Q12`).
+        let lhs = self.s_tp << 24;
+        if lhs > lim.mismatch_28 * self.s_tt {
+            self.beyond = self.beyond.saturating_add(1);
+            if self.beyond >= MISMATCH_TICKS {
+                self.state = ClutchState::Mismatch;
+                return true;
+            }
+            return false;
         }
-        if self.state == ClutchState::Unknown && lhs <= lim.confirm_q16.saturating_mul(self.s_tt) {
+        self.beyond = 0;
+        if self.state == ClutchState::Unknown && lhs <= lim.confirm_28 * self.s_tt {
             self.state = ClutchState::Confirmed;
         }
         false

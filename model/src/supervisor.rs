@@ -292,8 +292,6 @@ struct Thresholds {
     position_max: i64,
     timeout_ticks: u32,
     overload_ticks: u16,
-    /// The clutch monitor's constants, when `clutch_tolerance` > 0.
-    clutch: Option<ClutchLimits>,
 }
 
 /// The supervisor: thresholds derived from the configuration, the latch and the little
@@ -314,8 +312,10 @@ pub struct Supervisor {
     /// value then: what a clear would latch again at the next tick. Events (a sensor jump,
     /// the command timeout) are not conditions.
     condition: Option<Fault>,
-    /// The clutch monitor (runs when `clutch_tolerance` > 0).
+    /// The clutch monitor and its constants (when `clutch_tolerance` > 0; kept out of
+    /// the thresholds, which the check copies each tick).
     clutch: ClutchMonitor,
+    clutch_lim: Option<ClutchLimits>,
 }
 
 impl Supervisor {
@@ -327,6 +327,7 @@ impl Supervisor {
     pub fn new(cfg: &SupervisorConfig, sched: &Schedule) -> Result<Supervisor, SupervisorError> {
         let th = Self::thresholds(cfg, sched)?;
         Ok(Supervisor {
+            clutch_lim: Self::clutch_limits(cfg, sched),
             cfg: *cfg,
             th,
             latched: FaultSet(0),
@@ -354,7 +355,14 @@ impl Supervisor {
         self.th = Self::thresholds(cfg, sched)?;
         self.cfg = *cfg;
         self.clutch = ClutchMonitor::new();
+        self.clutch_lim = Self::clutch_limits(cfg, sched);
         Ok(())
+    }
+
+    /// The clutch monitor's constants (`None` with a zero tolerance). `cfg` is valid.
+    fn clutch_limits(cfg: &SupervisorConfig, sched: &Schedule) -> Option<ClutchLimits> {
+        let tol = cfg.clutch_tolerance.to_bits();
+        (tol > 0).then(|| ClutchLimits::new(sched, tol))
     }
 
     fn thresholds(cfg: &SupervisorConfig, sched: &Schedule) -> Result<Thresholds, SupervisorError> {
@@ -416,7 +424,6 @@ impl Supervisor {
             position_max: cfg.position_max.to_bits(),
             timeout_ticks: cfg.command_timeout_ms,
             overload_ticks: cfg.overload_ticks,
-            clutch: (tol > 0).then(|| ClutchLimits::new(sched, tol)),
         })
     }
 
@@ -426,6 +433,7 @@ impl Supervisor {
         self.cfg = other.cfg;
         self.th = other.th;
         self.clutch = ClutchMonitor::new();
+        self.clutch_lim = other.clutch_lim;
     }
 
     /// The configuration in use.
@@ -443,18 +451,16 @@ impl Supervisor {
     /// The capacity the overload check uses now: τ_cap(L), or the clutch monitor's.
     #[must_use]
     pub fn checked_capacity(&self) -> Torque {
-        Torque::from_bits(
-            self.th
-                .clutch
-                .as_ref()
-                .map_or(self.th.torque_cap, |lim| self.clutch.capacity(lim)),
-        )
+        Torque::from_bits(match &self.clutch_lim {
+            Some(lim) => self.clutch.capacity(lim),
+            None => self.th.torque_cap,
+        })
     }
 
     /// The clutch monitor's conclusion (`None` while `clutch_tolerance` is 0).
     #[must_use]
     pub fn clutch_state(&self) -> Option<crate::clutch_monitor::ClutchState> {
-        self.th.clutch.map(|_| self.clutch.state())
+        self.clutch_lim.map(|_| self.clutch.state())
     }
 
     /// Deflection envelope (φ_b + θ_cap + quantisation) the overload and stuck checks use.
@@ -605,12 +611,15 @@ impl Supervisor {
             self.prev_pot = Some(pot);
             let theta_g = i64::from(i32::from(pot) - th.pot_center).saturating_mul(POT_COUNT_Q32);
             let phi = theta_g.saturating_sub(out.link_angle.to_bits());
-            if let Some(lim) = &th.clutch {
-                if self.clutch.update(phi, out, lim) {
+            let mismatch = match &self.clutch_lim {
+                Some(lim) if self.clutch.update(phi, out, lim) => {
                     let r = self.clutch.ratio_q16(lim).unwrap_or(0);
-                    let permille = ((r * 1000) >> 16).clamp(0, i64::from(i32::MAX)) as i32;
-                    note(self, FaultCode::ClutchMismatch, permille);
+                    Some(((r * 1000) >> 16).clamp(0, i64::from(i32::MAX)) as i32)
                 }
+                _ => None,
+            };
+            if let Some(permille) = mismatch {
+                note(self, FaultCode::ClutchMismatch, permille);
             }
             if phi.saturating_abs() > th.envelope {
                 let tau = out.torque_estimate.to_bits().saturating_abs();
@@ -626,10 +635,10 @@ impl Supervisor {
         }
 
         let tau = out.torque_estimate.to_bits();
-        let cap = th
-            .clutch
-            .as_ref()
-            .map_or(th.torque_cap, |lim| self.clutch.capacity(lim));
+        let cap = match &self.clutch_lim {
+            Some(lim) => self.clutch.capacity(lim),
+            None => th.torque_cap,
+        };
         if tau.saturating_abs() > cap {
             self.over_ticks = self.over_ticks.saturating_add(1);
             if self.over_ticks >= th.overload_ticks {

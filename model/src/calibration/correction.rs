@@ -161,6 +161,19 @@ pub struct Corrector {
     boot_sum_q16: i64,
 }
 
+/// Signed change of an encoder reading from `prev` to `now` at `per_turn` (≥ 1) counts
+/// per turn, the shorter way round: in [−per_turn/2, per_turn/2). `now` is reduced
+/// modulo `per_turn` first (a reading beyond the turn's last count).
+#[must_use]
+pub fn wrapped_delta(now: u16, prev: u16, per_turn: u16) -> i32 {
+    let n = i32::from(per_turn.max(1));
+    let mut d = (i32::from(now) % n - i32::from(prev)).rem_euclid(n);
+    if d >= n / 2 {
+        d -= n;
+    }
+    d
+}
+
 /// `num/den` in Q16, rounded to nearest (configuration time only). `den` > 0.
 fn ratio_q16(num: i64, den: i64) -> i64 {
     (num * Q16 + den / 2).div_euclid(den)
@@ -239,16 +252,12 @@ impl Corrector {
     /// (keep the bridge off and do not run the servo).
     pub fn input(&mut self, raw: &TickInput) -> Option<TickInput> {
         // Encoder: unwrap at the raw counts per turn.
-        let cpt = i32::from(self.cal.encoder_counts_per_turn);
-        let now = i32::from(raw.link_encoder) % cpt;
+        let cpt = self.cal.encoder_counts_per_turn;
         if let Some(prev) = self.enc_prev {
-            let mut d = (now - i32::from(prev)).rem_euclid(cpt);
-            if d >= cpt / 2 {
-                d -= cpt;
-            }
+            let d = wrapped_delta(raw.link_encoder, prev, cpt);
             self.enc_turned = self.enc_turned.saturating_add(d);
         }
-        self.enc_prev = Some(now as u16);
+        self.enc_prev = Some(raw.link_encoder % cpt);
         let pot_q16 = raw.gear_pot.map(|p| self.pot_q16(p));
         if self.boot_left > 0 {
             self.boot_left -= 1;

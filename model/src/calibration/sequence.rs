@@ -25,7 +25,7 @@
 
 use fixed::types::I32F32;
 
-use super::correction::{SensorCorrection, Sign};
+use super::correction::{wrapped_delta, SensorCorrection, Sign};
 use crate::beam::{BeamModel, Setting};
 use crate::control::MotorParams;
 use crate::design::Design;
@@ -413,19 +413,15 @@ impl Calibration {
             return self.fail(Failure::PotDead);
         };
         // Encoder: unwrap at its counts per turn; a jump beyond 60 rad/s is a fault.
-        let cpt = i64::from(self.cfg.encoder_counts_per_turn);
-        let now = i64::from(raw.link_encoder) % cpt;
+        let cpt = self.cfg.encoder_counts_per_turn;
         if let Some(prev) = self.enc_prev {
-            let mut d = (now - i64::from(prev)).rem_euclid(cpt);
-            if d >= cpt / 2 {
-                d -= cpt;
-            }
-            if d.abs() > cpt / 100 + 1 {
+            let d = i64::from(wrapped_delta(raw.link_encoder, prev, cpt));
+            if d.abs() > i64::from(cpt / 100 + 1) {
                 return self.fail(Failure::EncoderJump);
             }
             self.enc_turned += d;
         }
-        self.enc_prev = Some(now as u16);
+        self.enc_prev = Some(raw.link_encoder % cpt);
         let in_rails = (self.cfg.adc_min..=self.cfg.adc_max).contains(&raw.current_adc);
         match self.phase {
             Phase::Rest { left } => self.rest(left, raw.current_adc, pot, in_rails),
