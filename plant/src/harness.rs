@@ -242,8 +242,28 @@ pub fn plant_config(
             constant_nm: load_nm,
             ..LoadConfig::default()
         },
+        clutch_length_m: (fx32(sched.setting().length().to_bits()) * 1e-3) as f32,
         ..PlantConfig::default()
     })
+}
+
+/// The coupling of the beams at an actual clutch length `length_m` (m), whatever the
+/// controller was told: the clutch slid by hand to another length.
+///
+/// # Errors
+/// The length is outside the design's range, or its stress does not fit.
+pub fn coupling_at(
+    design: &Design,
+    config: &Config,
+    length_m: f32,
+) -> Result<CouplingConfig, ControlError> {
+    let mut actual = *config;
+    let micro = libm::round(f64::from(length_m) * 1e9) as i64; // µm·1000 = mm·1e6
+    actual.clutch = model::control::ClutchSetting::Length(
+        model::Length::from_micro(micro)
+            .map_err(|_| ControlError::Beam(model::Error::ClutchLengthOutOfRange))?,
+    );
+    coupling_config(design, &model::control::Schedule::new(design, &actual)?)
 }
 
 /// The beams' coupling at the clutch setting of `sched` (a controller's schedule for
@@ -434,9 +454,11 @@ impl Recorder {
 /// # Errors
 /// As [`plant_config`].
 pub fn plant_for(sc: &Scenario) -> Result<Plant, ControlError> {
-    let mut pc = sc
-        .plant
-        .apply(&plant_config(&sc.design, &sc.config, sc.load_nm)?);
+    let nominal = plant_config(&sc.design, &sc.config, sc.load_nm)?;
+    let mut pc = sc.plant.apply(&nominal);
+    if pc.clutch_length_m != nominal.clutch_length_m {
+        pc.coupling = coupling_at(&sc.design, &sc.config, pc.clutch_length_m)?;
+    }
     pc.substeps = sc.substeps;
     pc.load.gravity_mgd_nm = sc.gravity_nm;
     pc.load.gravity_down_rad = 0.0;
@@ -456,7 +478,8 @@ pub fn plant_for(sc: &Scenario) -> Result<Plant, ControlError> {
         let phi = -(pc.coupling.free_play_rad
             + sc.load_nm.abs() / pc.coupling.stiffness_nm_per_rad)
             * sc.load_nm.signum();
-        plant.set_state(f64::from(phi), 0.0, 0.0, 0.0);
+        let a = f64::from(pc.power_up_angle_rad);
+        plant.set_state(a + f64::from(phi), 0.0, a, 0.0);
     }
     Ok(plant)
 }

@@ -415,11 +415,14 @@ pub enum FaultCode {
     DeadlineMissed = 8,
     /// No heartbeat within the command timeout. Value: ms since the last one.
     CommandTimeout = 9,
+    /// The beams are softer than configured (the clutch is longer than the host said).
+    /// Value: estimated/configured compliance, ‰.
+    ClutchMismatch = 10,
 }
 
 impl FaultCode {
     /// Every code, in the supervisor's check order.
-    pub const ALL: [FaultCode; 9] = [
+    pub const ALL: [FaultCode; 10] = [
         FaultCode::SensorRead,
         FaultCode::AdcOutOfRange,
         FaultCode::OverCurrent,
@@ -429,6 +432,7 @@ impl FaultCode {
         FaultCode::PositionLimit,
         FaultCode::DeadlineMissed,
         FaultCode::CommandTimeout,
+        FaultCode::ClutchMismatch,
     ];
 
     /// The code as logged and sent.
@@ -451,6 +455,7 @@ impl FaultCode {
             FaultCode::PositionLimit => "position-limit",
             FaultCode::DeadlineMissed => "deadline-missed",
             FaultCode::CommandTimeout => "command-timeout",
+            FaultCode::ClutchMismatch => "clutch-mismatch",
         }
     }
 
@@ -467,6 +472,7 @@ impl FaultCode {
             7 => FaultCode::PositionLimit,
             8 => FaultCode::DeadlineMissed,
             9 => FaultCode::CommandTimeout,
+            10 => FaultCode::ClutchMismatch,
             _ => return None,
         })
     }

@@ -141,6 +141,7 @@ pub const fn wire_fault_code(code: ModelFaultCode) -> FaultCode {
         ModelFaultCode::PositionLimit => FaultCode::PositionLimit,
         ModelFaultCode::DeadlineMissed => FaultCode::DeadlineMissed,
         ModelFaultCode::CommandTimeout => FaultCode::CommandTimeout,
+        ModelFaultCode::ClutchMismatch => FaultCode::ClutchMismatch,
     }
 }
 
