@@ -110,6 +110,23 @@ pub trait Device {
     /// handler).
     fn status(&mut self) -> Status;
 
+    /// [`Request::GetSensors`]: the raw readings of the last control tick.
+    ///
+    /// # Errors
+    /// [`ErrorCode::NotAllowed`] by default: a device without raw readings.
+    fn raw_sensors(&mut self) -> Result<crate::RawSensors, ErrorCode> {
+        Err(ErrorCode::NotAllowed)
+    }
+
+    /// [`Request::Nudge`]: open-loop drive at `duty_permille` for `duration_ms`.
+    ///
+    /// # Errors
+    /// [`ErrorCode::NotAllowed`] unless disabled (and by default: a device without it).
+    fn nudge(&mut self, duty_permille: i16, duration_ms: u16) -> Result<(), ErrorCode> {
+        let _ = (duty_permille, duration_ms);
+        Err(ErrorCode::NotAllowed)
+    }
+
     /// [`Request::Save`]: the running configuration into the settings store.
     ///
     /// # Errors
@@ -352,6 +369,7 @@ impl Handler {
                 Ok(Reply::Ok)
             }
             Request::GetLimits => Ok(Reply::Limits(dev.limits())),
+            Request::GetSensors | Request::Nudge { .. } => crate::sensors::dispatch(req, dev),
             Request::Save => done(dev.save()),
             Request::Load => done(dev.load()),
             Request::FactoryReset => done(dev.factory_reset()),

@@ -62,10 +62,17 @@ fn in_range(r: &Request) -> bool {
         | Request::Heartbeat
         | Request::DisarmHeartbeat
         | Request::GetLimits
+        | Request::GetSensors
         | Request::Save
         | Request::Load
         | Request::FactoryReset
         | Request::FaultsLog { .. } => true,
+        Request::Nudge {
+            duty_permille,
+            duration_ms,
+        } => {
+            (1..=120).contains(&duty_permille.unsigned_abs()) && (1..=1_000).contains(&duration_ms)
+        }
     }
 }
 
@@ -245,7 +252,7 @@ proptest! {
                         ErrorCode::OutOfRange | ErrorCode::NotAllowed | ErrorCode::Busy));
                 }
                 Reply::Ok => {
-                    let data_reply = matches!(req, Request::GetStatus | Request::SetStiffness { .. });
+                    let data_reply = matches!(req, Request::GetStatus | Request::SetStiffness { .. } | Request::GetSensors);
                     prop_assert!(!data_reply, "Ok for {:?}", req);
                 }
                 Reply::Status(s) => {
@@ -266,6 +273,10 @@ proptest! {
                 }
                 Reply::FaultPersists(_) => {
                     return Err(TestCaseError::fail("the mock never has a persisting fault"))
+                }
+                Reply::Sensors(r) => {
+                    prop_assert_eq!(req, Request::GetSensors);
+                    prop_assert_eq!(r, protocol::RawSensors::default());
                 }
                 Reply::FaultsLog { count, entry } => {
                     let asked = matches!(req, Request::FaultsLog { .. });
@@ -419,7 +430,7 @@ proptest! {
 #[test]
 fn frames_are_bounded_and_message_counts_match() {
     println!("fuzz cases per property: {}", config(FUZZ_CASES).cases);
-    assert_eq!(Request::VARIANTS, 22);
-    assert_eq!(Reply::VARIANTS, 8);
+    assert_eq!(Request::VARIANTS, 24);
+    assert_eq!(Reply::VARIANTS, 9);
     const { assert!(MAX_FRAME <= 64, "a frame fits a 64-byte DMA/queue slot") };
 }

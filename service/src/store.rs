@@ -218,9 +218,7 @@ impl Service {
             self.settings.stored = boot.set;
             return (boot.report, boot.faults);
         }
-        self.device(actuator)
-            .load_settings()
-            .unwrap_or_default()
+        self.device(actuator).load_settings().unwrap_or_default()
     }
 
     /// The bus identity and settings in force: the stored ones, else the AX-12A's factory

@@ -14,12 +14,14 @@ mod checks;
 mod cmd;
 mod defmt_log;
 mod e2e;
+mod fail_safe;
 mod firmware;
 mod flash;
 mod persistence;
 mod qemu;
 mod results;
 mod scenarios;
+mod sensors;
 mod setup;
 mod test;
 

@@ -6,6 +6,7 @@
 
 mod config;
 mod quantities;
+pub mod sensors;
 pub mod serve;
 
 use std::fmt::Write as _;

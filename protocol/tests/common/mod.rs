@@ -152,6 +152,13 @@ pub fn request() -> impl Strategy<Value = Request> {
         Just(Request::Heartbeat),
         Just(Request::DisarmHeartbeat),
         Just(Request::GetLimits),
+        Just(Request::GetSensors),
+        (any::<i16>(), edge_u16(1, protocol::NUDGE_DURATION_MAX_MS)).prop_map(
+            |(duty_permille, duration_ms)| Request::Nudge {
+                duty_permille,
+                duration_ms
+            }
+        ),
         Just(Request::Save),
         Just(Request::Load),
         Just(Request::FactoryReset),
@@ -180,10 +187,12 @@ pub fn request_index(r: &Request) -> u32 {
         Request::Heartbeat => 15,
         Request::DisarmHeartbeat => 16,
         Request::GetLimits => 17,
-        Request::Save => 18,
-        Request::Load => 19,
-        Request::FactoryReset => 20,
-        Request::FaultsLog { .. } => 21,
+        Request::GetSensors => 18,
+        Request::Nudge { .. } => 19,
+        Request::Save => 20,
+        Request::Load => 21,
+        Request::FactoryReset => 22,
+        Request::FaultsLog { .. } => 23,
     }
 }
 
@@ -197,7 +206,8 @@ pub fn reply_index(r: &Reply) -> u32 {
         Reply::Telemetry(_) => 4,
         Reply::Limits(_) => 5,
         Reply::FaultPersists(_) => 6,
-        Reply::FaultsLog { .. } => 7,
+        Reply::Sensors(_) => 7,
+        Reply::FaultsLog { .. } => 8,
     }
 }
 
@@ -305,6 +315,22 @@ pub fn reply() -> impl Strategy<Value = Reply> {
             Reply::FaultPersists(FaultRecord { code, value, tick })
         }),
         (
+            any::<u32>(),
+            any::<u16>(),
+            prop::option::of(any::<u16>()),
+            any::<u16>(),
+            any::<i16>()
+        )
+            .prop_map(|(tick, link_encoder, gear_pot, current_adc, nudge)| {
+                Reply::Sensors(protocol::RawSensors {
+                    tick,
+                    link_encoder,
+                    gear_pot,
+                    current_adc,
+                    nudge_duty_permille: nudge,
+                })
+            }),
+        (
             any::<u8>(),
             prop::option::of((any::<u32>(), fault_code(), any::<i32>(), any::<u32>()))
         )
@@ -340,6 +366,8 @@ pub enum Call {
     DisarmHeartbeat,
     Limits,
     Status,
+    RawSensors,
+    Nudge(i16, u16),
     Save,
     Load,
     FactoryReset,
@@ -550,6 +578,20 @@ impl Device for MockDevice {
         self.persisting
     }
 
+    fn raw_sensors(&mut self) -> Result<protocol::RawSensors, ErrorCode> {
+        self.calls.push(Call::RawSensors);
+        Ok(protocol::RawSensors::default())
+    }
+
+    fn nudge(&mut self, duty_permille: i16, duration_ms: u16) -> Result<(), ErrorCode> {
+        self.calls.push(Call::Nudge(duty_permille, duration_ms));
+        if self.state == State::Disabled {
+            Ok(())
+        } else {
+            Err(ErrorCode::NotAllowed)
+        }
+    }
+
     fn status(&mut self) -> Status {
         self.calls.push(Call::Status);
         Status {
@@ -619,6 +661,11 @@ pub fn expected_call(r: &Request) -> Option<Call> {
         Request::Heartbeat => Call::Heartbeat,
         Request::DisarmHeartbeat => Call::DisarmHeartbeat,
         Request::GetLimits => Call::Limits,
+        Request::GetSensors => Call::RawSensors,
+        Request::Nudge {
+            duty_permille,
+            duration_ms,
+        } => Call::Nudge(duty_permille, duration_ms),
         Request::Save => Call::Save,
         Request::Load => Call::Load,
         Request::FactoryReset => Call::FactoryReset,
