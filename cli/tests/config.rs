@@ -16,11 +16,7 @@ fn vsa(addr: &str, args: &[&str]) -> Output {
 }
 
 fn stdout(o: &Output) -> String {
-    assert!(
-        o.status.success(),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     String::from_utf8_lossy(&o.stdout).to_string()
 }
 
@@ -73,7 +69,10 @@ fn a_save_while_enabled_is_refused_in_one_line() {
 fn the_fault_log_lists_the_most_recent_first() {
     let board = FakeBoard::start().unwrap();
     let addr = board.addr().to_string();
-    assert_eq!(stdout(&vsa(&addr, &["faults", "--log"])), "fault log empty\n");
+    assert_eq!(
+        stdout(&vsa(&addr, &["faults", "--log"])),
+        "fault log empty\n"
+    );
     let entry = |seq, code, tick| LoggedFault {
         seq,
         fault: FaultRecord {
