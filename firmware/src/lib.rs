@@ -9,6 +9,7 @@
 //! - [`report`]: what the log task writes, and the verdict of an emulated run
 //!   ([`self_check`]); [`run_config`]: the run's options.
 //! - [`stack`]: stack painting and the high-water mark.
+//! - [`bus`]: the Dynamixel bus on the host-link UART.
 //! - [`fail_safe`]: the panic and HardFault handlers: the H-bridge off first, then the
 //!   report.
 //! - [`settings`]: the settings store at boot (the board's store: `board::open_settings`).
@@ -36,6 +37,7 @@ compile_error!(
 );
 
 pub mod board;
+pub mod bus;
 pub mod fail_safe;
 pub mod report;
 pub mod run_config;

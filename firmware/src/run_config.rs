@@ -34,6 +34,8 @@ pub struct RunConfig {
     /// exactly the words written.
     #[cfg(feature = "qemu")]
     pub flash_cut_after: Option<u32>,
+    /// `--dxl-id N`: the board's ID on the Dynamixel bus (0–252; default 1).
+    pub dxl_id: u8,
 }
 
 /// Longest `--flash` path, bytes.
@@ -68,6 +70,7 @@ impl RunConfig {
             flash_file: None,
             #[cfg(feature = "qemu")]
             flash_cut_after: None,
+            dxl_id: 1,
         }
     }
 
@@ -151,6 +154,14 @@ impl RunConfig {
                     }
                     config.flash_cut_after = Some(n);
                 }
+                "--dxl-id" => {
+                    let value = args.next().ok_or(RunConfigError::MissingValue)?;
+                    config.dxl_id = value
+                        .parse()
+                        .ok()
+                        .filter(|&id: &u8| id <= 252)
+                        .ok_or(RunConfigError::BadDynamixelId)?;
+                }
                 _ => return Err(RunConfigError::UnknownArgument),
             }
         }
@@ -195,4 +206,6 @@ pub enum RunConfigError {
     BadCut,
     /// An argument this firmware does not know.
     UnknownArgument,
+    /// `--dxl-id` is not 0..=252.
+    BadDynamixelId,
 }

@@ -2,6 +2,7 @@
 
 use crate::frame::{Decoder, Frame, FrameError};
 use crate::msg::{ErrorCode, FaultRecord, Gains, Limits, LoggedFault, Reply, Request, Status};
+use crate::replay::ReplyCache;
 use crate::VERSION;
 
 /// What the handler asks of the device (implemented by the firmware over its controller
@@ -250,6 +251,8 @@ impl ErrorCounters {
 pub struct Handler {
     errors: ErrorCounters,
     requests: u32,
+    /// The last reply, for a retried request (same `seq`, same request).
+    cache: ReplyCache,
 }
 
 fn done(r: Result<(), ErrorCode>) -> Result<Reply, ErrorCode> {
@@ -275,7 +278,14 @@ impl Handler {
                 other: 0,
             },
             requests: 0,
+            cache: ReplyCache::new(),
         }
+    }
+
+    /// Retried requests answered with the reply they already had (carried out once).
+    #[must_use]
+    pub const fn replayed(&self) -> u32 {
+        self.cache.replayed()
     }
 
     /// The error counters.
@@ -308,6 +318,10 @@ impl Handler {
                 seq: Some(frame.seq),
             });
         }
+        if let Some(reply) = self.cache.replay(&frame) {
+            dev.link_activity();
+            return reply;
+        }
         bump(&mut self.requests);
         let reply = match frame.body.validate() {
             Ok(()) => {
@@ -323,6 +337,7 @@ impl Handler {
                 Reply::Error(code)
             }
         };
+        self.cache.keep(frame.seq, frame.body, body);
         Frame::new(frame.seq, body)
     }
 

@@ -95,6 +95,7 @@
 mod frame;
 mod handler;
 mod msg;
+mod replay;
 mod sensors;
 
 pub use frame::{
@@ -106,6 +107,7 @@ pub use msg::{
     ErrorCode, FaultCode, FaultRecord, FaultSet, Gains, LimitFlags, Limits, LoggedFault, Reply,
     Request, State, Status, TelemetrySample,
 };
+pub use replay::ReplyCache;
 pub use sensors::{RawSensors, NUDGE_DURATION_MAX_MS, NUDGE_DUTY_MAX_PERMILLE};
 
 /// Protocol version carried in every frame. A frame with another version is answered with

@@ -34,6 +34,8 @@ use protocol::{
 };
 use rtic_core::Mutex;
 
+pub mod dynamixel;
+pub mod line;
 pub mod link;
 pub mod sensors;
 pub mod store;
@@ -229,6 +231,10 @@ pub struct Actuator {
     limits: LimitFlags,
     /// Measured link angle at the last tick, I32F32 rad (a sine's centre).
     link_angle: i64,
+    /// Link velocity at the last tick, I32F32 rad/s (the Dynamixel Present Speed).
+    link_velocity: i64,
+    /// Torque estimate at the last tick, I32F32 N·m (the Dynamixel Present Load).
+    torque: i64,
 }
 
 impl Actuator {
@@ -241,6 +247,8 @@ impl Actuator {
             open_loop: sensors::OpenLoop::default(),
             limits: LimitFlags::NONE,
             link_angle: 0,
+            link_velocity: 0,
+            torque: 0,
         }
     }
 
@@ -254,6 +262,8 @@ impl Actuator {
     ) -> Option<(u16, TelemetrySample)> {
         self.limits = wire_limits(&out.control.flags);
         self.link_angle = out.control.link_angle.to_bits();
+        self.link_velocity = out.control.link_velocity.to_bits();
+        self.torque = out.control.torque_estimate.to_bits();
         let seq = self.telemetry.due()?;
         Some((seq, self.sample(input, out)))
     }

@@ -13,6 +13,7 @@ mod board;
 mod checks;
 mod cmd;
 mod defmt_log;
+mod dynamixel;
 mod e2e;
 mod fail_safe;
 mod firmware;
@@ -72,6 +73,13 @@ enum Task {
     /// Only the host-link end-to-end test (`cargo xtask test` runs it too): an emulated
     /// board serving the protocol, driven through the client library.
     E2e {
+        /// Emulated board.
+        #[arg(long, value_enum, default_value = "qemu-m4")]
+        board: Board,
+    },
+    /// Only the Dynamixel check (`cargo xtask test` runs it too): three emulated boards on
+    /// the bus of `vsa serve-qemu --bus`, checked with ROBOTIS' dynamixel-sdk.
+    Dynamixel {
         /// Emulated board.
         #[arg(long, value_enum, default_value = "qemu-m4")]
         board: Board,
@@ -182,6 +190,14 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             setup::ensure_qemu()?;
             let elf = firmware::build(board)?;
             let r = persistence::run(board, &elf)?;
+            println!("{}: {r}", board.feature());
+            Ok(ExitCode::SUCCESS)
+        }
+        Task::Dynamixel { board } => {
+            setup::ensure_targets()?;
+            setup::ensure_qemu()?;
+            let elf = firmware::build(board)?;
+            let r = dynamixel::run(board, &elf)?;
             println!("{}: {r}", board.feature());
             Ok(ExitCode::SUCCESS)
         }

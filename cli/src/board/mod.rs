@@ -4,6 +4,7 @@
 //! Every argument is parsed and range-checked before the connection is made (bad input
 //! exits with 2 and sends nothing); a refusal, a timeout or a lost connection exits with 1.
 
+pub mod bus;
 mod config;
 mod quantities;
 pub mod sensors;

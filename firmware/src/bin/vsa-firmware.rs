@@ -82,6 +82,7 @@ mod app {
         firmware::stack::paint();
         let mut core = cx.core;
         let run: RunConfig = Selected::run_config();
+        let dxl_id = run.dxl_id;
         let parts = Selected::init(cx.device, &run);
         let (log_tx, log_rx) = cx.local.queue.split();
         let (rx_tx, rx_rx) = cx.local.rx_queue.split();
@@ -95,8 +96,9 @@ mod app {
             run.idle,
         );
         defmt::info!(
-            "host link: USART2, protocol version {=u8}",
-            protocol::VERSION
+            "host link: USART2, protocol version {=u8}; Dynamixel ID {=u8}, Protocol 1.0",
+            protocol::VERSION,
+            run.dxl_id
         );
         let mut actuator = Actuator::new(parts.servo);
         let mut service = parts.service;
@@ -116,7 +118,10 @@ mod app {
                 dropped: 0,
                 idle_mode: run.idle,
                 reporter: Reporter::new(run),
-                link: Link::new(service, rx_rx, telemetry_rx, parts.serial_tx),
+                link: firmware::bus::serve(
+                    Link::new(service, rx_rx, telemetry_rx, parts.serial_tx),
+                    dxl_id,
+                ),
                 serial_rx: parts.serial_rx,
                 rx_tx,
                 telemetry_tx,
@@ -139,10 +144,10 @@ mod app {
             .shared
             .actuator
             .lock(|actuator| control.tick(entry, actuator, telemetry_tx));
-        // A latched fault wakes the link task too: it goes to the stored fault log.
-        if result.sampled || result.fault.is_some() {
-            NVIC::pend(board::pac::Interrupt::EXTI1);
-        }
+        // Every tick, not only when a telemetry sample was queued or a fault latched: the
+        // link task also notices an idle Dynamixel line (`firmware::bus`) and logs faults
+        // to the stored fault log.
+        NVIC::pend(board::pac::Interrupt::EXTI1);
         timing::publish_tick(tick);
 
         let tx = cx.local.log_tx;
