@@ -103,10 +103,12 @@
 //! * **Saves, resets and fault-log writes only while the motor is disabled.** `save` and
 //!   `factory-reset` while enabled are refused with `not-allowed`; a latched fault disables
 //!   the motor first, so the fault-log write that follows it finds it disabled. While the
-//!   bridge is off a stalled tick moves nothing; the firmware tells the supervisor a flash
-//!   operation is under way so that the ticks it delays are not latched as
-//!   `deadline-missed` (the emulated boards' RAM flash does not stall: there the deadline
-//!   check stays armed and shows 0 missed deadlines).
+//!   bridge is off a stalled tick moves nothing. The stall holds the CPU before the control
+//!   tick can start, so the SysTick periods it spans coalesce into one late tick (ticks
+//!   lost in the once-a-second count) rather than a tick that overruns its own deadline;
+//!   that is the expectation on the Nucleo, not yet measured there. The emulated boards'
+//!   RAM flash does not stall: there `cargo xtask persistence` shows 0 missed deadlines
+//!   over 1 000 saves.
 //! * **Small sectors:** the store is [`PAGES`] = 2 pages of [`PAGE_SIZE`] = 16 KiB: on the
 //!   F446RE, **sectors 1 and 2** (0x0800_4000–0x0800_BFFF). The 16 KiB sectors erase in
 //!   0.25–0.5 s rather than 1–2 s; sector 0 must hold the vector table (the boot address);
@@ -116,12 +118,13 @@
 //!   header), so each page is erased once per ≈ 400 saves (1 000 saves: erase counts
 //!   `[2, 2]`, `tests/wear.rs`): with the F4's 10 000 erase cycles per sector, ≈ 4 million
 //!   saves.
-//! * **Word-wide programming:** [`WORD_SIZE`] = 4 (PSIZE x32, the F4's parallelism at 2.7–3.6 V).
-//!   `stm32f4xx-hal`'s `NorFlash` erases in 128 KiB units (`ERASE_SIZE`) and programs bytes,
-//!   so the Nucleo needs a small `NorFlash` over `UnlockedFlash` presenting sectors 1–2 as
-//!   offsets 0..32 KiB with `ERASE_SIZE` = 16 KiB (erase = the HAL's `erase(sector)`) and
-//!   `WRITE_SIZE` = 4 — the same geometry as [`RamFlash`], so both boards write the same
-//!   format.
+//! * **Word-wide writes:** [`WORD_SIZE`] = 4, the store's write unit on every board.
+//!   `stm32f4xx-hal`'s `NorFlash` erases in 128 KiB units (`ERASE_SIZE`), so the Nucleo
+//!   has a small `NorFlash` over `UnlockedFlash` (`firmware/src/board/nucleo_flash.rs`)
+//!   presenting sectors 1–2 as offsets 0..32 KiB with `ERASE_SIZE` = 16 KiB (erase = the
+//!   HAL's `erase(sector)`) and `WRITE_SIZE` = 4 (each word's bytes programmed by the HAL's
+//!   `program`, PSIZE x8) — the same geometry as [`RamFlash`], so both boards write the
+//!   same format.
 //!
 //! The one `memory.x` then keeps the image out of sectors 1–2 by starting `.text` after
 //! them (cortex-m-rt's `_stext`); sector 0 holds only the vector table:

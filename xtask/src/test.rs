@@ -159,6 +159,12 @@ pub fn run() -> Result<bool> {
     }
 
     for (board, elf) in elfs.iter().filter(|(b, _)| b.qemu_machine().is_some()) {
+        let result = crate::persistence::run(*board, elf)
+            .map(|r| println!("[{} settings store] {r}", board.feature()));
+        tally.record(&format!("settings store on {}", board.feature()), result);
+    }
+
+    for (board, elf) in elfs.iter().filter(|(b, _)| b.qemu_machine().is_some()) {
         let result = crate::dynamixel::run(*board, elf)
             .map(|r| println!("[{} dynamixel] {r}", board.feature()));
         tally.record(&format!("dynamixel-sdk on {}", board.feature()), result);
