@@ -26,6 +26,11 @@ pub const fn request_name(req: &Request) -> &'static str {
         Request::GetLimits => "get-limits",
         Request::GetSensors => "get-sensors",
         Request::Nudge { .. } => "nudge",
+        Request::Save => "save",
+        Request::Load => "load",
+        Request::FactoryReset => "factory-reset",
+        Request::FaultsLog { .. } => "faults-log",
+        Request::Impedance { .. } => "impedance",
     }
 }
 
