@@ -300,7 +300,7 @@ impl Client {
         }
     }
 
-    fn request_ok(&mut self, req: Request) -> Result<()> {
+    pub(crate) fn request_ok(&mut self, req: Request) -> Result<()> {
         match self.request(req)? {
             Reply::Ok => Ok(()),
             reply => Err(Error::UnexpectedReply {
@@ -632,6 +632,27 @@ impl Client {
         self.request_ok(Request::Sine {
             amplitude_urad,
             frequency_mhz,
+        })
+    }
+
+    /// [`Request::Impedance`]: hold `target_urad` µrad with virtual stiffness
+    /// `stiffness_mnm_per_rad` mN·m/rad, damping `damping_unms_per_rad` µN·m·s/rad and
+    /// feed-forward torque `torque_unm` µN·m.
+    ///
+    /// # Errors
+    /// As [`Client::ping`]; the board refuses a stiffness above the joint's.
+    pub fn impedance(
+        &mut self,
+        target_urad: i32,
+        stiffness_mnm_per_rad: u32,
+        damping_unms_per_rad: u32,
+        torque_unm: i32,
+    ) -> Result<()> {
+        self.request_ok(Request::Impedance {
+            target_urad,
+            stiffness_mnm_per_rad,
+            damping_unms_per_rad,
+            torque_unm,
         })
     }
 

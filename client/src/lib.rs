@@ -37,6 +37,7 @@ pub mod fake;
 mod names;
 pub mod qemu;
 mod record;
+mod settings;
 mod transport;
 
 use std::time::Duration;

@@ -442,6 +442,31 @@ impl LogSink {
     }
 }
 
+pub use store::FLASH_FILE_PATH_MAX as FLASH_PATH_MAX;
+
+/// `path` as the firmware's `--flash` argument: the semihosting command line is split at
+/// spaces and QEMU's option at commas, so neither may appear; at most [`FLASH_PATH_MAX`]
+/// bytes.
+///
+/// # Errors
+/// Why the path cannot be passed, as a phrase for the user.
+pub fn flash_file_arg(path: &Path) -> std::result::Result<String, String> {
+    let s = path
+        .to_str()
+        .ok_or_else(|| format!("'{}' is not UTF-8", path.display()))?;
+    if s.is_empty() || s.contains([',', ' ', '\t', '\n']) {
+        return Err(format!(
+            "'{s}': the emulated board takes a path without spaces or commas"
+        ));
+    }
+    if s.len() > FLASH_PATH_MAX {
+        return Err(format!(
+            "'{s}' is longer than the emulated board's {FLASH_PATH_MAX} bytes"
+        ));
+    }
+    Ok(s.to_owned())
+}
+
 /// How to run an emulated board.
 #[derive(Clone, Debug)]
 pub struct QemuOptions {

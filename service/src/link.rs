@@ -163,13 +163,15 @@ impl<'q, W: Write> Link<'q, W> {
         &self.tx
     }
 
-    /// Handles everything queued: received bytes first (a reply for each completed frame),
+    /// Handles everything queued (after logging a newly latched fault to the settings
+    /// store, [`Service::log_latched_fault`]): received bytes first (a reply for each completed frame),
     /// then telemetry, until both queues are empty.
     ///
     /// With the Dynamixel bus, a status waiting for its time keeps the task here (taking
     /// received bytes meanwhile) until it is sent or dropped; an idle line is noticed on
     /// the first call after it began (the firmware calls this every control tick).
     pub fn poll(&mut self, actuator: &mut impl Mutex<T = Actuator>) {
+        self.service.log_latched_fault(actuator);
         loop {
             if let Some(byte) = self.rx.dequeue() {
                 match self.dynamixel.as_mut() {

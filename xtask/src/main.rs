@@ -1,6 +1,6 @@
 //! `cargo xtask`: set-up, build, run and test automation for vsa.
 //!
-//! - `cargo xtask run [--board qemu-m4|qemu-m3] [--scenario NAME]`: the firmware on an
+//! - `cargo xtask run [--board qemu-m4|qemu-m3] [--scenario NAME] [--flash FILE]`: the firmware on an
 //!   emulated board running a scenario (default: the step sweep), its defmt log decoded,
 //!   and the host simulation's hash of the same scenario for comparison.
 //! - `cargo xtask test`: formatting, clippy (host and every board), host tests, release
@@ -18,6 +18,7 @@ mod e2e;
 mod fail_safe;
 mod firmware;
 mod flash;
+mod persistence;
 mod qemu;
 mod results;
 mod scenarios;
@@ -61,6 +62,11 @@ enum Task {
         /// icount sleep=off defect: 500 ticks per emulated second).
         #[arg(long, value_parser = ["spin", "wfi"], default_value = "spin")]
         idle: String,
+        /// Host file holding the emulated board's flash (its settings store: the boot log
+        /// shows what is stored; latched faults go to its fault log); created if absent.
+        /// Two runs with one file are a power cycle.
+        #[arg(long, value_name = "FILE")]
+        flash: Option<std::path::PathBuf>,
     },
     /// Run every check: fmt, clippy, host tests, firmware builds, emulated self-tests.
     Test,
@@ -87,6 +93,14 @@ enum Task {
         elf: PathBuf,
         /// The raw defmt bytes.
         log: PathBuf,
+    },
+    /// The settings store on an emulated board: save and power cycle, power cuts in every
+    /// word write of a save and of a factory reset, 1 000 saves (`VSA_PERSISTENCE_CUTS=N`
+    /// sweeps every N-th cut, `VSA_PERSISTENCE_SAVES=N` makes N saves).
+    Persistence {
+        /// Emulated board.
+        #[arg(long, value_enum, default_value = "qemu-m4")]
+        board: Board,
     },
     /// Instruction counts per call (fixed point vs f32), footprint and stack of each board.
     Bench,
@@ -119,6 +133,7 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             scenario,
             seconds,
             idle,
+            flash,
         } => {
             anyhow::ensure!(
                 board.qemu_machine().is_some(),
@@ -147,6 +162,11 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             if let Some(s) = seconds {
                 args.extend(["--seconds".to_owned(), s.to_string()]);
             }
+            if let Some(f) = &flash {
+                let f =
+                    client::qemu::flash_file_arg(f).map_err(|e| anyhow::anyhow!("--flash {e}"))?;
+                args.extend(["--flash".to_owned(), f]);
+            }
             let (code, outcome) = emulate(board, &elf, &args, test::wall_limit(60))?;
             scenarios::print_host_comparison(id, &outcome)?;
             Ok(code)
@@ -162,6 +182,14 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             setup::ensure_qemu()?;
             let elf = firmware::build(board)?;
             let r = e2e::run(board, &elf)?;
+            println!("{}: {r}", board.feature());
+            Ok(ExitCode::SUCCESS)
+        }
+        Task::Persistence { board } => {
+            setup::ensure_targets()?;
+            setup::ensure_qemu()?;
+            let elf = firmware::build(board)?;
+            let r = persistence::run(board, &elf)?;
             println!("{}: {r}", board.feature());
             Ok(ExitCode::SUCCESS)
         }

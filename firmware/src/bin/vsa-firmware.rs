@@ -75,6 +75,8 @@ mod app {
         queue: Queue<LogItem, LOG_QUEUE> = Queue::new(),
         rx_queue: Queue<u8, RX_QUEUE> = Queue::new(),
         telemetry_queue: Queue<Sample, TELEMETRY_QUEUE> = Queue::new(),
+        settings_flash: board::SettingsFlash = board::SETTINGS_FLASH,
+        settings: Option<board::SettingsStore> = None,
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         firmware::stack::paint();
@@ -85,7 +87,6 @@ mod app {
         let (log_tx, log_rx) = cx.local.queue.split();
         let (rx_tx, rx_rx) = cx.local.rx_queue.split();
         let (telemetry_tx, telemetry_rx) = cx.local.telemetry_queue.split();
-        timing::start_systick(&mut core.SYST, board::SYSCLK_HZ);
         defmt::info!(
             "vsa firmware {=str} on {=str}: sysclk {=u32} Hz, control loop {=u32} Hz, idle {}",
             env!("CARGO_PKG_VERSION"),
@@ -99,10 +100,14 @@ mod app {
             protocol::VERSION,
             run.dxl_id
         );
+        let mut actuator = Actuator::new(parts.servo);
+        let mut service = parts.service;
+        let storage = board::open_settings(cx.local.settings_flash, cx.local.settings, &run);
+        firmware::settings::boot(&mut service, &mut actuator, storage, run.serves());
+        // Last: loading and preparing the stored settings takes longer than a period.
+        timing::start_systick(&mut core.SYST, board::SYSCLK_HZ);
         (
-            Shared {
-                actuator: Actuator::new(parts.servo),
-            },
+            Shared { actuator },
             Local {
                 control: ControlLoop::new(parts.io, parts.hooks),
                 accounting: TickAccounting::new(),
@@ -114,7 +119,7 @@ mod app {
                 idle_mode: run.idle,
                 reporter: Reporter::new(run),
                 link: firmware::bus::serve(
-                    Link::new(parts.service, rx_rx, telemetry_rx, parts.serial_tx),
+                    Link::new(service, rx_rx, telemetry_rx, parts.serial_tx),
                     dxl_id,
                 ),
                 serial_rx: parts.serial_rx,
@@ -139,8 +144,9 @@ mod app {
             .shared
             .actuator
             .lock(|actuator| control.tick(entry, actuator, telemetry_tx));
-        // Every tick, not only when a telemetry sample was queued: the link task also
-        // notices an idle Dynamixel line (`firmware::bus`).
+        // Every tick, not only when a telemetry sample was queued or a fault latched: the
+        // link task also notices an idle Dynamixel line (`firmware::bus`) and logs faults
+        // to the stored fault log.
         NVIC::pend(board::pac::Interrupt::EXTI1);
         timing::publish_tick(tick);
 
