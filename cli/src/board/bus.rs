@@ -277,7 +277,10 @@ mod tests {
         assert_eq!(first.client, [0x03, 0x01, 0x02, 0x00]);
         assert!(first.packets.is_empty());
         let second = o.split(&v1[3..]);
-        assert_eq!((second.client.as_slice(), second.packets.as_slice()), (&v1[..], &v1[..]));
+        assert_eq!(
+            (second.client.as_slice(), second.packets.as_slice()),
+            (&v1[..], &v1[..])
+        );
         let mut both = v2.to_vec();
         both.extend_from_slice(&[0x02, 0x05, 0x00]);
         both.extend_from_slice(&v1);
