@@ -94,6 +94,31 @@ def wait_still(port, ph, moving_address, seconds=10.0):
     check(False, f"devices still moving after {seconds} s")
 
 
+def settled(read, done, seconds=2.0):
+    """`read()` until `done(result)`, at most `seconds`: a broadcast has no status, so a
+    device takes it in its own time (each emulated board hears the packet through its own
+    USART, and the service applies a command between two control ticks). Returns the last
+    result and the seconds it took."""
+    t0 = time.monotonic()
+    while True:
+        result = read()
+        waited = time.monotonic() - t0
+        if done(result) or waited > seconds:
+            return result, waited
+        time.sleep(0.01)
+
+
+def drain(port, seconds=0.3):
+    """Waits `seconds` and throws away what came meanwhile; returns its length (statuses
+    that came after the SDK stopped listening, which the next request would otherwise
+    take for its own answer: its receiver skips other IDs' statuses, not a late one from
+    the same ID)."""
+    time.sleep(seconds)
+    late = port.getBytesAvailable()
+    port.clearPort()
+    return late
+
+
 def timed_reads(label, n, read_once):
     """n reads; each returns (result, ok_data). A timeout (no status within the SDK's
     packet timeout) is counted apart from a wrong or corrupt answer."""
@@ -129,8 +154,10 @@ def protocol1(port):
     # Torque on by broadcast (no status), then one SYNC_WRITE of three goals.
     ph.write1ByteTxOnly(port, BROADCAST, 24, 1)
     for i in IDS:
-        on, res, err = ph.read1ByteTxRx(port, i, 24)
-        check(res == COMM_SUCCESS and on == 1, f"1.0 id {i}: torque enabled by the broadcast ({on})")
+        (on, res), waited = settled(lambda: ph.read1ByteTxRx(port, i, 24)[:2],
+                                    lambda r: r == (1, COMM_SUCCESS))
+        check(res == COMM_SUCCESS and on == 1,
+              f"1.0 id {i}: torque enabled by the broadcast ({on}, read after {waited:.3f} s)")
     goals = {1: 300, 2: 512, 3: 700}
     sw = GroupSyncWrite(port, ph, 30, 2)
     for i, g in goals.items():
@@ -193,8 +220,12 @@ def protocol2(port):
     for i in IDS:
         model, res, err = ph.ping(port, i)
         check(res == COMM_SUCCESS and err == 0 and model == 1060, f"2.0 ping {i}: model {model}")
+    t0 = time.monotonic()
     found, res = ph.broadcastPing(port)
-    check(res == COMM_SUCCESS and sorted(found) == list(IDS), f"2.0 broadcast ping: {sorted(found)}")
+    window = time.monotonic() - t0
+    late = drain(port)
+    check(res == COMM_SUCCESS and sorted(found) == list(IDS),
+          f"2.0 broadcast ping: {sorted(found)} in the SDK's {window:.3f} s window ({late} bytes came later)")
     for i in IDS:
         data, res, err = ph.readTxRx(port, i, 0, 71)
         ok = res == COMM_SUCCESS and err == 0 and len(data) == 71

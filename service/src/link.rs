@@ -38,7 +38,9 @@ pub const RX_QUEUE: usize = 256;
 pub const TELEMETRY_QUEUE: usize = 16;
 
 /// Longest a status waits, past its due time, for the line to fall quiet, µs; then it is
-/// dropped (the host has given up on it by then: the SDK waits about 34 ms).
+/// dropped (the host has given up on it by then: the SDK waits about 34 ms). On a line
+/// whose idle time is longer (bytes trickling in, as into an emulated USART), the idle
+/// time: a packet heard meanwhile may take that long to arrive whole.
 pub const HOLD_LIMIT_US: u64 = 30_000;
 
 /// A telemetry sample and its sequence number (see [`protocol::Reply::Telemetry`]).
@@ -64,6 +66,8 @@ struct DynamixelLine {
     clock: fn() -> u64,
     /// No byte for this long: the line is idle, µs.
     idle_us: u64,
+    /// Longest a due status is held back, µs ([`HOLD_LIMIT_US`] or `idle_us`).
+    hold_us: u64,
     /// When the last byte was taken from the receive queue, µs.
     last_rx_us: u64,
     /// Whether the idle line since `last_rx_us` has been reported.
@@ -79,7 +83,7 @@ struct DynamixelLine {
 pub struct DynamixelStats {
     /// Status packets sent.
     pub sent: u32,
-    /// Status packets dropped: the line was not quiet within [`HOLD_LIMIT_US`] of their
+    /// Status packets dropped: the line was not quiet within the hold limit of their
     /// due time, or a new instruction arrived before they went out.
     pub dropped: u32,
 }
@@ -125,6 +129,7 @@ impl<'q, W: Write> Link<'q, W> {
             splitter: Splitter::new(),
             clock,
             idle_us,
+            hold_us: HOLD_LIMIT_US.max(idle_us),
             last_rx_us: clock(),
             idle_seen: true,
             pending: None,
@@ -241,7 +246,7 @@ impl<'q, W: Write> Link<'q, W> {
         }
         if d.splitter.in_packet() {
             // Never over another packet: wait for it to end, within reason.
-            if now - due > HOLD_LIMIT_US {
+            if now - due > d.hold_us {
                 d.pending = None;
                 d.stats.dropped = d.stats.dropped.saturating_add(1);
             }

@@ -125,15 +125,32 @@ fn start_boards(ids: &[u8], conn: &ConnectArgs) -> CliResult<Vec<(Adopted, TcpSt
 
 /// Picks the Dynamixel packets out of what one board sends (both protocols: `FF FF ID LEN`
 /// and `FF FF FD 00 ID LEN_L LEN_H`); everything else is our protocol's.
+///
+/// A packet is passed on only whole. The boards hear each other through their emulated
+/// USARTs, a byte every millisecond or slower, so two of them can start talking before
+/// either hears the other (a broadcast ping's slots are 3 ms apart); on a wire that is a
+/// collision they would see at once, here the relay would interleave the two packets'
+/// bytes and both arrive corrupt (at the client and at the other boards). Passing whole
+/// packets makes the relay the wire's arbiter: the second packet follows the first.
 #[derive(Debug, Default)]
 struct Outbound {
     held: Vec<u8>,
 }
 
+/// What one board sent, sorted by [`Outbound::split`].
+#[derive(Debug, Default, PartialEq, Eq)]
+struct Split {
+    /// For the client, in order: our protocol's bytes and whole Dynamixel packets.
+    client: Vec<u8>,
+    /// For the other boards: the whole Dynamixel packets only.
+    packets: Vec<u8>,
+}
+
 impl Outbound {
-    /// The whole packets among `bytes` (and those held from before), in order.
-    fn packets(&mut self, bytes: &[u8]) -> Vec<u8> {
-        let mut out = Vec::new();
+    /// Sorts `bytes` (after those held from before): a packet's bytes are held until it is
+    /// whole.
+    fn split(&mut self, bytes: &[u8]) -> Split {
+        let mut out = Split::default();
         for &b in bytes {
             self.held.push(b);
             loop {
@@ -148,12 +165,14 @@ impl Outbound {
                     [0xFF, 0xFF, _, len, ..] => 4 + usize::from(*len),
                     _ => {
                         // Not a packet start: our protocol's byte.
-                        self.held.remove(0);
+                        out.client.push(self.held.remove(0));
                         continue;
                     }
                 };
                 if h.len() >= total {
-                    out.extend(self.held.drain(..total));
+                    let packet: Vec<u8> = self.held.drain(..total).collect();
+                    out.client.extend_from_slice(&packet);
+                    out.packets.extend(packet);
                 } else {
                     break;
                 }
@@ -218,11 +237,13 @@ pub fn run(link: &Path, ids: &[u8], conn: &ConnectArgs) -> CliResult<()> {
                 }
                 Ok(n) => n,
             };
-            let _ = master.write_all(&buf[..n]);
-            let packets = outbound[i].packets(&buf[..n]);
+            let split = outbound[i].split(&buf[..n]);
+            if !split.client.is_empty() {
+                let _ = master.write_all(&split.client);
+            }
             for (j, (_, s)) in boards.iter_mut().enumerate() {
-                if j != i && !packets.is_empty() {
-                    let _ = s.write_all(&packets);
+                if j != i && !split.packets.is_empty() {
+                    let _ = s.write_all(&split.packets);
                 }
             }
         }
@@ -250,17 +271,24 @@ mod tests {
         let v2 = [
             0xFF, 0xFF, 0xFD, 0x00, 0x01, 0x04, 0x00, 0x55, 0x00, 0xA1, 0x0C,
         ];
-        // One of our frames (no 0xFF start), then a 1.0 status split across two reads.
-        assert!(o
-            .packets(&[0x03, 0x01, 0x02, 0x00, 0xFF, 0xFF, 0x01])
-            .is_empty());
-        assert_eq!(o.packets(&v1[3..]), v1);
+        // One of our frames (no 0xFF start), then a 1.0 status split across two reads:
+        // the frame goes to the client at once, the status only once whole.
+        let first = o.split(&[0x03, 0x01, 0x02, 0x00, 0xFF, 0xFF, 0x01]);
+        assert_eq!(first.client, [0x03, 0x01, 0x02, 0x00]);
+        assert!(first.packets.is_empty());
+        let second = o.split(&v1[3..]);
+        assert_eq!(
+            (second.client.as_slice(), second.packets.as_slice()),
+            (&v1[..], &v1[..])
+        );
         let mut both = v2.to_vec();
         both.extend_from_slice(&[0x02, 0x05, 0x00]);
         both.extend_from_slice(&v1);
         let mut expected = v2.to_vec();
         expected.extend_from_slice(&v1);
-        assert_eq!(o.packets(&both), expected);
+        let third = o.split(&both);
+        assert_eq!(third.packets, expected);
+        assert_eq!(third.client, both);
     }
 
     #[test]
