@@ -65,6 +65,8 @@ enum Command {
     Script(board::ScriptArgs),
     /// Keep an emulated board running and relay a TCP port to it for `--tcp` clients.
     ServeQemu(board::serve::ServeArgs),
+    /// Stream the raw sensor readings, optionally nudging the motor open-loop (bring-up).
+    Sensors(board::sensors::SensorsArgs),
 }
 
 fn run(cli: Cli) -> CliResult<()> {
@@ -93,6 +95,7 @@ fn run(cli: Cli) -> CliResult<()> {
         Command::Board(cmd) => board::run(&cmd, &cli.conn),
         Command::Script(args) => board::script(&args, &cli.conn),
         Command::ServeQemu(args) => board::serve::run(&args, &cli.conn),
+        Command::Sensors(args) => board::sensors::run(&args, &cli.conn),
     }
 }
 

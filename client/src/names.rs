@@ -24,6 +24,8 @@ pub const fn request_name(req: &Request) -> &'static str {
         Request::Heartbeat => "heartbeat",
         Request::DisarmHeartbeat => "disarm-heartbeat",
         Request::GetLimits => "get-limits",
+        Request::GetSensors => "get-sensors",
+        Request::Nudge { .. } => "nudge",
     }
 }
 

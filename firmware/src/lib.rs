@@ -3,12 +3,14 @@
 //! - [`board`]: board support for the three boards, chosen by a cargo feature: `qemu-m4`
 //!   (default), `qemu-m3` and `nucleo-f446re`: the [`board::Board`] and
 //!   [`board::TickHooks`] traits, the USART2 host-link driver, the emulated boards'
-//!   simulated actuator and semihosting exit and panic handlers.
+//!   simulated actuator and semihosting exit.
 //! - [`tick`]: one period of the 1 kHz control tick, timed.
 //! - [`timing`]: SysTick, the once-a-second tick accounting, the log's clock.
 //! - [`report`]: what the log task writes, and the verdict of an emulated run
 //!   ([`self_check`]); [`run_config`]: the run's options.
 //! - [`stack`]: stack painting and the high-water mark.
+//! - [`fail_safe`]: the panic and HardFault handlers: the H-bridge off first, then the
+//!   report.
 //!
 //! The programs: `vsa-firmware` (the firmware, every board), and on the emulated boards
 //! `vsa-control-only` (the control loop and host link without the simulated actuator, for
@@ -33,6 +35,7 @@ compile_error!(
 );
 
 pub mod board;
+pub mod fail_safe;
 pub mod report;
 pub mod run_config;
 pub mod self_check;

@@ -7,9 +7,9 @@ pub struct RunConfig {
     pub seconds: Option<u32>,
     /// How `idle` waits for the next interrupt.
     pub idle: IdleMode,
-    /// Panic on purpose in this control tick (1-based), to prove the panic path: the
-    /// log stays decodable and the emulator exits with failure.
-    pub panic_at_tick: Option<u32>,
+    /// Panic or fault on purpose in a control tick, to prove the fail-safe: the bridge
+    /// goes off, the log stays decodable and the emulator exits with failure.
+    pub injection: Option<crate::fail_safe::Injection>,
     /// The scenario to run (emulated boards; default the step sweep).
     #[cfg(feature = "qemu")]
     pub scenario: plant::scenario::ScenarioId,
@@ -42,7 +42,7 @@ impl RunConfig {
         Self {
             seconds: None,
             idle,
-            panic_at_tick: None,
+            injection: None,
             #[cfg(feature = "qemu")]
             scenario: plant::scenario::ScenarioId::StepSweep,
             #[cfg(feature = "qemu")]
@@ -54,8 +54,8 @@ impl RunConfig {
     }
 
     /// Parses `--scenario NAME`, `--serve`, `--seconds N` (stop after N s even if the
-    /// scenario has not ended), `--idle wfi|spin`, `--inject-panic-at-tick N` and
-    /// `--icount-shift N`, `--load-mnm N`.
+    /// scenario has not ended), `--idle wfi|spin`, `--inject-panic-at-tick N`,
+    /// `--inject-hardfault-at-tick N`, `--icount-shift N` and `--load-mnm N`.
     pub fn parse<'a>(
         args: impl Iterator<Item = &'a str>,
         default_idle: IdleMode,
@@ -92,10 +92,13 @@ impl RunConfig {
                         _ => return Err(RunConfigError::BadIdleMode),
                     };
                 }
-                "--inject-panic-at-tick" => {
+                "--inject-panic-at-tick" | "--inject-hardfault-at-tick" => {
                     let value = args.next().ok_or(RunConfigError::MissingValue)?;
                     let tick: u32 = value.parse().map_err(|_| RunConfigError::BadTick)?;
-                    config.panic_at_tick = Some(tick);
+                    config.injection = Some(crate::fail_safe::Injection {
+                        tick,
+                        hardfault: arg == "--inject-hardfault-at-tick",
+                    });
                 }
                 #[cfg(feature = "qemu")]
                 "--scenario" => {
@@ -132,7 +135,7 @@ pub enum RunConfigError {
     BadSeconds,
     /// `--idle` is neither `wfi` nor `spin`.
     BadIdleMode,
-    /// `--inject-panic-at-tick` is not a tick number.
+    /// `--inject-panic-at-tick` or `--inject-hardfault-at-tick` is not a tick number.
     BadTick,
     /// `--scenario` names no scenario.
     UnknownScenario,

@@ -85,7 +85,7 @@ impl ControlLoop {
         let t1 = SYST::get_current();
         let input = self.io.read_inputs();
         let out = actuator.servo.tick(&input);
-        self.io.drive(out.bridge);
+        self.io.drive(actuator.open_loop.demand(&input, &out));
         let t2 = SYST::get_current();
         let sampled = actuator.publish_tick(&input, &out, telemetry);
         if plan.overrun {

@@ -109,6 +109,23 @@ pub trait Device {
     /// [`Request::GetStatus`]: the current status (`protocol_errors` is overwritten by the
     /// handler).
     fn status(&mut self) -> Status;
+
+    /// [`Request::GetSensors`]: the raw readings of the last control tick.
+    ///
+    /// # Errors
+    /// [`ErrorCode::NotAllowed`] by default: a device without raw readings.
+    fn raw_sensors(&mut self) -> Result<crate::RawSensors, ErrorCode> {
+        Err(ErrorCode::NotAllowed)
+    }
+
+    /// [`Request::Nudge`]: open-loop drive at `duty_permille` for `duration_ms`.
+    ///
+    /// # Errors
+    /// [`ErrorCode::NotAllowed`] unless disabled (and by default: a device without it).
+    fn nudge(&mut self, duty_permille: i16, duration_ms: u16) -> Result<(), ErrorCode> {
+        let _ = (duty_permille, duration_ms);
+        Err(ErrorCode::NotAllowed)
+    }
 }
 
 /// Protocol errors since start, per kind (saturating counters).
@@ -317,6 +334,7 @@ impl Handler {
                 Ok(Reply::Ok)
             }
             Request::GetLimits => Ok(Reply::Limits(dev.limits())),
+            Request::GetSensors | Request::Nudge { .. } => crate::sensors::dispatch(req, dev),
         }
     }
 

@@ -95,6 +95,7 @@
 mod frame;
 mod handler;
 mod msg;
+mod sensors;
 
 pub use frame::{
     decode_payload, encode, encode_raw, encode_telemetry, encode_to_vec, telemetry_frame, Decoder,
@@ -105,6 +106,7 @@ pub use msg::{
     ErrorCode, FaultCode, FaultRecord, FaultSet, Gains, LimitFlags, Limits, Reply, Request, State,
     Status, TelemetrySample,
 };
+pub use sensors::{RawSensors, NUDGE_DURATION_MAX_MS, NUDGE_DUTY_MAX_PERMILLE};
 
 /// Protocol version carried in every frame. A frame with another version is answered with
 /// [`ErrorCode::UnsupportedVersion`] (echoing its `seq`).

@@ -88,6 +88,19 @@ pub enum Request {
     DisarmHeartbeat,
     /// Reply: [`Reply::Limits`], the live limits and the position window in force.
     GetLimits,
+    /// Reply: [`Reply::Sensors`], the raw readings of the last control tick (any state).
+    GetSensors,
+    /// Drive the motor open-loop at `duty_permille` for `duration_ms`, to check the motor's
+    /// direction and the sensors before the loop is closed. Only while disabled (else
+    /// [`ErrorCode::NotAllowed`]); ends by itself, on [`Request::Disable`], on enable and
+    /// when a fault latches (the supervisor keeps checking). Reply: [`Reply::Ok`].
+    Nudge {
+        /// Duty, ‰ of the supply, 1 ≤ |·| ≤ [`crate::NUDGE_DUTY_MAX_PERMILLE`]; the sign is
+        /// the direction (positive: the direction pin high).
+        duty_permille: i16,
+        /// How long, ms, 1..=[`crate::NUDGE_DURATION_MAX_MS`].
+        duration_ms: u16,
+    },
 }
 
 /// PID gains, each in 10⁻³ of the controller's unit (duty ‰ out, link angle in rad), so
@@ -210,6 +223,11 @@ impl Request {
             Request::StreamTelemetry { rate_hz } => {
                 rate_hz == 0 || (TELEMETRY_RATE_MIN_HZ..=TELEMETRY_RATE_MAX_HZ).contains(&rate_hz)
             }
+            Request::GetSensors => true,
+            Request::Nudge {
+                duty_permille,
+                duration_ms,
+            } => crate::sensors::nudge_ok(duty_permille, duration_ms),
         };
         if ok {
             Ok(())
@@ -284,6 +302,8 @@ pub enum Reply {
     /// (nothing was cleared): the fault, its value now (unit per [`FaultCode`]) and the
     /// tick it was last seen at.
     FaultPersists(FaultRecord),
+    /// Reply to [`Request::GetSensors`].
+    Sensors(crate::RawSensors),
 }
 
 /// Operating state.

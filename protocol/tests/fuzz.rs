@@ -61,7 +61,14 @@ fn in_range(r: &Request) -> bool {
         | Request::AutoGains
         | Request::Heartbeat
         | Request::DisarmHeartbeat
-        | Request::GetLimits => true,
+        | Request::GetLimits
+        | Request::GetSensors => true,
+        Request::Nudge {
+            duty_permille,
+            duration_ms,
+        } => {
+            (1..=120).contains(&duty_permille.unsigned_abs()) && (1..=1_000).contains(&duration_ms)
+        }
     }
 }
 
@@ -241,7 +248,7 @@ proptest! {
                         ErrorCode::OutOfRange | ErrorCode::NotAllowed | ErrorCode::Busy));
                 }
                 Reply::Ok => {
-                    let data_reply = matches!(req, Request::GetStatus | Request::SetStiffness { .. });
+                    let data_reply = matches!(req, Request::GetStatus | Request::SetStiffness { .. } | Request::GetSensors);
                     prop_assert!(!data_reply, "Ok for {:?}", req);
                 }
                 Reply::Status(s) => {
@@ -262,6 +269,10 @@ proptest! {
                 }
                 Reply::FaultPersists(_) => {
                     return Err(TestCaseError::fail("the mock never has a persisting fault"))
+                }
+                Reply::Sensors(r) => {
+                    prop_assert_eq!(req, Request::GetSensors);
+                    prop_assert_eq!(r, protocol::RawSensors::default());
                 }
             }
         } else {
@@ -410,7 +421,7 @@ proptest! {
 #[test]
 fn frames_are_bounded_and_message_counts_match() {
     println!("fuzz cases per property: {}", config(FUZZ_CASES).cases);
-    assert_eq!(Request::VARIANTS, 18);
-    assert_eq!(Reply::VARIANTS, 7);
+    assert_eq!(Request::VARIANTS, 20);
+    assert_eq!(Reply::VARIANTS, 8);
     const { assert!(MAX_FRAME <= 64, "a frame fits a 64-byte DMA/queue slot") };
 }

@@ -396,9 +396,10 @@ fn each_bad_frame_kind() {
         rig.feed(&w),
         vec![Frame::new(78, Reply::Error(ErrorCode::UnsupportedVersion))]
     );
-    // Unknown message index 18 with a good CRC: echoes the seq.
+    // The first unknown message index with a good CRC: echoes the seq.
     let mut w = [0u8; MAX_FRAME];
-    let n = encode_raw(&[VERSION, 79, 18], &mut w).unwrap();
+    let unknown = <Request as protocol::Message>::VARIANTS as u8;
+    let n = encode_raw(&[VERSION, 79, unknown], &mut w).unwrap();
     assert_eq!(
         rig.feed(&w[..n]),
         vec![Frame::new(79, Reply::Error(ErrorCode::UnknownMessage))]

@@ -160,6 +160,11 @@ fn largest_requests() -> Vec<Request> {
         Request::Heartbeat,
         Request::DisarmHeartbeat,
         Request::GetLimits,
+        Request::GetSensors,
+        Request::Nudge {
+            duty_permille: i16::MIN,
+            duration_ms: u16::MAX,
+        },
     ]
 }
 
@@ -214,6 +219,13 @@ fn largest_replies() -> Vec<Reply> {
             code: FaultCode::CommandTimeout,
             value: i32::MIN,
             tick: u32::MAX,
+        }),
+        Reply::Sensors(protocol::RawSensors {
+            tick: u32::MAX,
+            link_encoder: u16::MAX,
+            gear_pot: Some(u16::MAX),
+            current_adc: u16::MAX,
+            nudge_duty_permille: i16::MIN,
         }),
     ]
 }

@@ -35,6 +35,7 @@ use protocol::{
 use rtic_core::Mutex;
 
 pub mod link;
+pub mod sensors;
 
 use fixed::types::I32F32;
 
@@ -222,6 +223,8 @@ pub struct Actuator {
     pub servo: Servo,
     /// Telemetry pacing and drop count.
     pub telemetry: TelemetryGate,
+    /// The bring-up mode: the open-loop nudge and the last raw readings.
+    pub open_loop: sensors::OpenLoop,
     limits: LimitFlags,
     /// Measured link angle at the last tick, I32F32 rad (a sine's centre).
     link_angle: i64,
@@ -234,6 +237,7 @@ impl Actuator {
         Self {
             servo,
             telemetry: TelemetryGate::default(),
+            open_loop: sensors::OpenLoop::default(),
             limits: LimitFlags::NONE,
             link_angle: 0,
         }
@@ -445,7 +449,10 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
     }
 
     fn disable(&mut self) -> Result<(), ErrorCode> {
-        self.actuator.lock(|a| a.servo.disable());
+        self.actuator.lock(|a| {
+            a.open_loop.stop();
+            a.servo.disable();
+        });
         Ok(())
     }
 
@@ -587,5 +594,16 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
 
     fn status(&mut self) -> Status {
         self.actuator.lock(|a| a.status())
+    }
+
+    fn raw_sensors(&mut self) -> Result<protocol::RawSensors, ErrorCode> {
+        Ok(self.actuator.lock(|a| a.open_loop.last()))
+    }
+
+    fn nudge(&mut self, duty_permille: i16, duration_ms: u16) -> Result<(), ErrorCode> {
+        self.actuator.lock(|a| {
+            let state = a.servo.state();
+            a.open_loop.start(state, duty_permille, duration_ms)
+        })
     }
 }

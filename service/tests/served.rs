@@ -2,70 +2,36 @@
 //! the simulated actuator of a serving board (`plant::served`), tick by tick, as on the
 //! emulated board but without the UART.
 
-use model::control::Config;
-use model::servo::{Servo, TickInput};
-use model::supervisor::SupervisorConfig;
-use model::{Design, Length};
 use plant::metrics::{move_command_tick, StepResponse};
-use plant::scenario::BridgeLines;
-use plant::served::ServedActuator;
 use plant::ENCODER_COUNT_RAD;
-use protocol::{Frame, Handler, Reply, Request, State, TelemetrySample};
-use service::{Actuator, Service};
+use protocol::{Reply, Request, State, TelemetrySample};
 
+mod closed_loop;
 mod common;
-use common::Cell;
 
 struct Bench {
-    actuator: Cell,
-    service: Service,
-    handler: Handler,
-    world: ServedActuator,
-    lines: BridgeLines,
+    board: closed_loop::Bench,
     samples: Vec<TelemetrySample>,
-    seq: u16,
 }
 
 impl Bench {
     fn new(load_nm: f32) -> Bench {
-        let design = Design::paper();
-        let config = Config::paper(Length::from_int(3));
-        let sup = SupervisorConfig::DEFAULT;
         Bench {
-            actuator: Cell(Actuator::new(Servo::new(&design, &config, &sup).unwrap())),
-            service: Service::new(design, config, sup),
-            handler: Handler::new(),
-            world: ServedActuator::new(design, &config, load_nm).unwrap(),
-            lines: BridgeLines::default(),
+            board: closed_loop::Bench::new(load_nm),
             samples: Vec::new(),
-            seq: 0,
         }
     }
 
     fn ask(&mut self, req: Request) -> Reply {
-        self.seq += 1;
-        let mut dev = self.service.device(&mut self.actuator);
-        self.handler
-            .handle_request(Frame::new(self.seq, req), &mut dev)
-            .body
+        self.board.ask(req)
     }
 
     fn run(&mut self, ticks: u32) {
         for _ in 0..ticks {
-            let a = &mut self.actuator.0;
-            let r = self.world.tick(self.lines, a.servo.controller().schedule());
-            let input = TickInput {
-                link_encoder: r.link_encoder,
-                gear_pot: Some(r.gear_pot),
-                current_adc: r.current_adc,
-                read_error: None,
-            };
-            let out = a.servo.tick(&input);
-            self.lines = BridgeLines::for_demand(out.bridge);
-            if let Some((_, s)) = a.after_tick(&input, &out) {
+            let (input, out) = self.board.step();
+            if let Some((_, s)) = self.board.actuator.0.after_tick(&input, &out) {
                 self.samples.push(s);
             }
-            assert!(out.new_fault.is_none(), "fault {:?}", out.new_fault);
         }
     }
 }
@@ -79,7 +45,7 @@ fn a_commanded_move_with_the_load_meets_the_controller_tolerances() {
     assert_eq!(b.ask(Request::StreamTelemetry { rate_hz: 500 }), Reply::Ok);
     // The load is hung on at the first driven tick; let the hold take it.
     b.run(1000);
-    let command_tick = b.actuator.0.servo.ticks();
+    let command_tick = b.board.actuator.0.servo.ticks();
     let target = 500_000.0;
     assert_eq!(
         b.ask(Request::Move {

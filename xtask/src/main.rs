@@ -14,11 +14,13 @@ mod checks;
 mod cmd;
 mod defmt_log;
 mod e2e;
+mod fail_safe;
 mod firmware;
 mod flash;
 mod qemu;
 mod results;
 mod scenarios;
+mod sensors;
 mod setup;
 mod test;
 

@@ -9,7 +9,7 @@ use crate::board::Board;
 use crate::checks::Expected;
 use crate::cmd::{cargo, describe};
 use crate::e2e;
-use crate::{bench, checks, firmware, qemu, scenarios, setup};
+use crate::{bench, checks, fail_safe, firmware, qemu, scenarios, sensors, setup};
 use plant::scenario::ScenarioId;
 
 /// Control tick at which the panic-handler test panics on purpose.
@@ -131,8 +131,13 @@ pub fn run() -> Result<bool> {
         let result = qemu::run(*board, elf, &args, wall_limit(3), |line| {
             println!("[{} panic test] {line}", board.feature())
         })
-        .and_then(|outcome| checks::check(&outcome, &Expected::PanicAt(PANIC_TICK)));
+        .and_then(|outcome| {
+            checks::check(&outcome, &Expected::PanicAt(PANIC_TICK))?;
+            fail_safe::check_bridge_off(&outcome, fail_safe::PANIC_REPORT)
+        });
         tally.record(&format!("panic handler on {}", board.feature()), result);
+        let result = fail_safe::hardfault_test(*board, elf, PANIC_TICK);
+        tally.record(&format!("HardFault handler on {}", board.feature()), result);
     }
 
     for (board, elf) in elfs.iter().filter(|(b, _)| b.qemu_machine().is_some()) {
@@ -145,6 +150,12 @@ pub fn run() -> Result<bool> {
             &format!("host link end-to-end on {}", board.feature()),
             result,
         );
+    }
+
+    for (board, elf) in elfs.iter().filter(|(b, _)| b.qemu_machine().is_some()) {
+        let result =
+            sensors::check(*board, elf).map(|r| println!("[{} sensors] {r}", board.feature()));
+        tally.record(&format!("vsa sensors on {}", board.feature()), result);
     }
 
     if !tally.failures.is_empty() {

@@ -5,6 +5,7 @@
 //! exits with 2 and sends nothing); a refusal, a timeout or a lost connection exits with 1.
 
 mod quantities;
+pub mod sensors;
 pub mod serve;
 
 use std::fmt::Write as _;

@@ -59,7 +59,7 @@ mod app {
         control: ControlLoop,
         accounting: TickAccounting,
         board_clock: board::IndependentClock,
-        panic_at_tick: Option<u32>,
+        injection: Option<firmware::fail_safe::Injection>,
         log_tx: Producer<'static, LogItem>,
         log_rx: Consumer<'static, LogItem>,
         dropped: u32,
@@ -105,7 +105,7 @@ mod app {
                 control: ControlLoop::new(parts.io, parts.hooks),
                 accounting: TickAccounting::new(),
                 board_clock: parts.clock,
-                panic_at_tick: run.panic_at_tick,
+                injection: run.injection,
                 log_tx,
                 log_rx,
                 dropped: 0,
@@ -120,13 +120,11 @@ mod app {
     }
 
     /// The 1 kHz control period, at the highest priority.
-    #[task(binds = SysTick, priority = 3, shared = [actuator], local = [control, accounting, board_clock, panic_at_tick, log_tx, dropped, telemetry_tx])]
+    #[task(binds = SysTick, priority = 3, shared = [actuator], local = [control, accounting, board_clock, injection, log_tx, dropped, telemetry_tx])]
     fn control_tick(mut cx: control_tick::Context) {
         let entry = SYST::get_current();
         let tick = cx.local.accounting.ticks() + 1;
-        if *cx.local.panic_at_tick == Some(tick) {
-            panic!("injected panic at tick {}", tick);
-        }
+        firmware::fail_safe::inject(*cx.local.injection, tick);
         let now_us = cx.local.board_clock.now_us();
         let control = &mut *cx.local.control;
         let telemetry_tx = cx.local.telemetry_tx;

@@ -24,10 +24,12 @@ pub mod serial;
 mod sim;
 
 #[cfg(feature = "nucleo-f446re")]
-pub use nucleo::{pac, Nucleo as Selected};
+pub use nucleo::{force_bridge_off, halt_after_fault, pac, Nucleo as Selected};
 #[cfg(feature = "qemu")]
-pub use qemu::{pac, Qemu as Selected, USART_BRR};
+pub use qemu::{halt_after_fault, pac, Qemu as Selected, USART_BRR};
 pub use serial::{Serial, SerialRx, SerialTx};
+#[cfg(feature = "qemu")]
+pub use sim::force_bridge_off;
 #[cfg(feature = "qemu")]
 pub use sim::{at_rest, SimulatedIo, Simulation, POT_AT_REST, SERVED_CLUTCH_MM};
 
@@ -56,6 +58,17 @@ pub trait Board {
     /// Ends the run with its verdict: the emulated boards exit QEMU with it, the real
     /// board logs it and halts.
     fn exit(passed: bool) -> !;
+}
+
+/// The H-bridge outputs as the fail-safe saw them (`force_bridge_off`, run by the panic
+/// and HardFault handlers of `crate::fail_safe`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+pub struct BridgeOutputs {
+    /// The bridge's enable line is high (on the real board: EN high and TIM1's main
+    /// output on).
+    pub enabled: bool,
+    /// The PWM duty on the bridge's input, ‰ (0 whenever the PWM output is off).
+    pub duty_permille: u16,
 }
 
 /// What a board does around each control step, and the events it has for the log.

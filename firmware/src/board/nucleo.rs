@@ -5,28 +5,46 @@
 //!
 //! The one table of what is wired where. The drivers in [`Io`] use exactly these.
 //!
-//! | function                        | pin  | peripheral                       | Nucleo header |
-//! |---------------------------------|------|----------------------------------|---------------|
-//! | H-bridge PWM (IN1)              | PA8  | TIM1_CH1, AF1, 20 kHz            | CN9 D7        |
-//! | H-bridge direction (IN2/PHASE)  | PA9  | GPIO out, push-pull              | CN5 D8        |
-//! | H-bridge enable (EN / nSLEEP)   | PA10 | GPIO out, push-pull, low = off   | CN9 D2        |
-//! | link encoder A                  | PA6  | TIM3_CH1, AF2 (QEI)              | CN5 D12       |
-//! | link encoder B                  | PA7  | TIM3_CH2, AF2 (QEI)              | CN5 D11       |
-//! | motor current sense             | PA0  | ADC1_IN0                         | CN8 A0        |
-//! | gear-side potentiometer         | PA1  | ADC1_IN1                         | CN8 A1        |
-//! | host link TX (USB VCP)          | PA2  | USART2_TX, AF7                   | ST-LINK VCP   |
-//! | host link RX (USB VCP)          | PA3  | USART2_RX, AF7                   | ST-LINK VCP   |
-//! | independent µs clock            | –    | TIM2 (internal)                  | –             |
-//! | watchdog                        | –    | IWDG (LSI), 80 ms                | –             |
+//! The bridge is sign-magnitude: one PWM input (magnitude), one phase input (direction),
+//! one enable; a DRV8874 in PH/EN mode (PMODE low) takes these three signals as they are.
+//! An IN1/IN2 bridge (L298 inputs, DRV8871, TB6612 without an inverter) does not: wired by
+//! pin order it drives reverse duties inverted (docs/real-board.md).
+//!
+//! | function                                 | pin  | peripheral                       | Nucleo header |
+//! |------------------------------------------|------|----------------------------------|---------------|
+//! | bridge PWM → DRV8874 EN (magnitude)      | PA8  | TIM1_CH1, AF1, 20 kHz            | CN9 D7        |
+//! | bridge phase → DRV8874 PH (direction)    | PA9  | GPIO out, push-pull, high = +    | CN5 D8        |
+//! | bridge enable → DRV8874 nSLEEP           | PA10 | GPIO out, push-pull, low = off   | CN9 D2        |
+//! | link encoder A                           | PA6  | TIM3_CH1, AF2 (QEI), pull-up     | CN5 D12       |
+//! | link encoder B                           | PA7  | TIM3_CH2, AF2 (QEI), pull-up     | CN5 D11       |
+//! | motor current sense                      | PA0  | ADC1_IN0 (injected, TIM1 CC4)    | CN8 A0        |
+//! | gear-side potentiometer                  | PA1  | ADC1_IN1                         | CN8 A1        |
+//! | host link TX (USB VCP)                   | PA2  | USART2_TX, AF7                   | ST-LINK VCP   |
+//! | host link RX (USB VCP)                   | PA3  | USART2_RX, AF7, DMA1 stream 5    | ST-LINK VCP   |
+//! | independent µs clock                     | –    | TIM2 (internal)                  | –             |
+//! | current-sense trigger                    | –    | TIM1 CH4 (internal, no pin)      | –             |
+//! | watchdog                                 | –    | IWDG (LSI), 80 ms                | –             |
 //!
 //! From reset until `init` configures them (and again after any reset) the pins are floating
-//! inputs: the bridge board must hold IN1 and EN low with pull-downs of its own.
+//! inputs: the bridge board must hold its EN (PWM) and nSLEEP inputs low with pull-downs of
+//! its own (the DRV8874 has internal pull-downs on both).
 //!
 //! # Clocks
 //!
 //! 8 MHz HSE bypass from the ST-LINK's MCO → PLL → 180 MHz SYSCLK (over-drive on), APB1
 //! 45 MHz (timers 90 MHz), APB2 90 MHz (timers 180 MHz), ADC 90 MHz / 4 = 22.5 MHz. `init`
 //! checks the frozen clocks against these constants, which everything below is derived from.
+//! The HSE is given [`HSE_START_TIMEOUT_MS`] to become ready (STM32Cube's
+//! `HSE_STARTUP_TIMEOUT`); without it (the ST-LINK's MCO not reaching OSC_IN: UM1724, "OSC
+//! clock supply") the PLL runs from the 16 MHz HSI to the same frequencies and a warning is
+//! logged: the HSI's ±1 % at 25 °C (datasheet; wider over temperature) then adds to the
+//! baud-rate error.
+//!
+//! # Debugger
+//!
+//! `init` sets DBGMCU_CR.DBG_SLEEP, so the core's clock keeps running in the idle loop's WFI
+//! and probe-rs can attach to the running firmware (otherwise attaching to a sleeping core
+//! can fail; `probe-rs … --connect-under-reset` is the other way in).
 //!
 //! # Peripherals behind the driver traits ([`Io`])
 //!
@@ -34,38 +52,64 @@
 //!   20 kHz, duty resolution 1/9000. CCR1 is preloaded (RM0390 requires it in PWM mode), so a
 //!   new duty takes effect at the next period; except 0, which forces an update event so
 //!   that the output is low at once: [`drivers::HBridge`] relies on "PWM off" having happened
-//!   before it flips the direction pin.
+//!   before it flips the direction pin. TIM1 CH4 (no pin) compares at the middle of the
+//!   on-time and triggers the current sample ([`CurrentAdc`]).
 //! - [`LinkEncoder`]: TIM3 in encoder mode 3 (both edges of both inputs: 1024 lines × 4 =
 //!   4096 counts per turn), 16-bit counter wrapping at 65 536 = 16 × 4096, so `CNT mod 4096`
-//!   is the angle in either direction through the wrap. Input filter: 8 samples at 90 MHz
-//!   (89 ns). The ABI output is incremental (no index wired): counts are relative to the
-//!   link's position at power-up.
-//! - [`GearPot`] and [`CurrentAdc`]: ADC1, software-started single conversions, 12-bit,
-//!   sample time 56 ADC cycles: (56 + 12) / 22.5 MHz = 3.02 µs per conversion, ≈ 6 µs for
-//!   both per tick. 56 cycles allow a source impedance up to ≈ 57 kΩ at 12 bits (datasheet
-//!   R_AIN formula, C_ADC 4 pF, R_ADC 6 kΩ). A conversion polls EOC at most
-//!   `ADC_POLL_LIMIT` = 1000 times (≥ 7× the polls a conversion needs, ≈ 20–60 µs), then
-//!   aborts the conversion (ADON off and on, 5 µs to stabilise) and returns
-//!   [`SensorError::Timeout`]: never hangs, never panics. The HAL's `Adc::convert`
-//!   spins on STRT and EOC without bound (and panics if no conversion started), so ADC1 is
-//!   driven through the PAC. Both sensors share ADC1; each conversion runs in a critical
-//!   section (≈ 3 µs with interrupts masked, at most one poll limit on a timeout), so the two
-//!   handles may live in different tasks. The current is sampled at whatever phase of the
-//!   PWM period the tick falls on (not synchronised to TIM1).
+//!   is the angle in either direction through the wrap. Input filter: a level must hold for
+//!   8 samples at f_DTS / 16 = 5.625 MHz (1.42 µs) to count, which rejects ringing and
+//!   glitches shorter than that and still passes up to ≈ 1.2 M counts/s (each input holds a
+//!   level for two counts). Internal pull-ups (≈ 40 kΩ) on A and B: a push-pull output (the
+//!   AS5047P's ABI) overrides them, an open-collector one needs them, and an unplugged
+//!   encoder reads still rather than counting noise. The ABI output is incremental (no index
+//!   wired): counts are relative to the link's position at power-up.
+//! - [`GearPot`] and [`CurrentAdc`]: ADC1, 12-bit, sample time 56 ADC cycles: (56 + 12) /
+//!   22.5 MHz = 3.02 µs per conversion. 56 cycles allow a source impedance up to ≈ 57 kΩ at
+//!   12 bits (datasheet R_AIN formula, C_ADC 4 pF, R_ADC 6 kΩ).
+//!   The pot is a software-started regular conversion that polls EOC at most
+//!   `ADC_POLL_LIMIT` = 1000 times (≥ 7× the polls a conversion needs, ≈ 20–60 µs; an
+//!   injected current conversion that interrupts it costs one more conversion time), then
+//!   aborts it (ADON off and on, 5 µs to stabilise) and returns [`SensorError::Timeout`]:
+//!   never hangs, never panics. It runs in a critical section (≈ 3 µs with interrupts
+//!   masked). The HAL's `Adc::convert` spins on STRT and EOC without bound (and panics if no
+//!   conversion started), so ADC1 is driven through the PAC.
+//!   The current is an injected conversion triggered by TIM1's CC4 event in every PWM
+//!   period, at the middle of the on-time less half the sampling window, so it reads the
+//!   average of the current ripple and does not jump with the phase of the tick in the
+//!   period or at a reversal. The tick reads the latest result (at most one PWM period,
+//!   50 µs, old); no new result since the last tick (1 ms = 20 periods) is
+//!   [`SensorError::Timeout`]. Short on-times: [`CURRENT_SAMPLE_LEAD_TICKS`]. The sensor
+//!   expected (docs/real-board.md): bidirectional, in series with the motor, 0 A at
+//!   mid-scale, [`model::sensors::ADC_COUNTS_PER_A`] counts/A.
 //! - [`Watchdog`]: the independent watchdog, LSI / 32 (1 ms per count at the nominal 32 kHz),
 //!   reload 79: 80 ms nominal, 54–151 ms over the LSI's 17–47 kHz datasheet range. The
 //!   1 kHz tick feeds it ([`TickHooks::before_step`]); a loop that stalls (a tick that never
-//!   returns, SysTick no longer firing, interrupts masked, a panic: panic-probe ends in a
-//!   HardFault loop) stops feeding it and the IWDG resets the MCU, which puts every pin back
+//!   returns, SysTick no longer firing, interrupts masked, a panic or HardFault after its
+//!   report) stops feeding it and the IWDG resets the MCU, which puts every pin back
 //!   to a floating input (bridge off through its pull-downs). The next boot logs that the
 //!   reset came from the watchdog. It is started last in `init`, so init's own work
-//!   is not counted; the first tick follows 1 ms after RTIC's init returns.
+//!   is not counted; the first tick follows 1 ms after RTIC's init returns. The same hook
+//!   pends the USART2 interrupt when the receive ring holds bytes not yet drained
+//!   ([`super::serial::rx_waiting`]).
+//! - Host link: USART2 receives by DMA into a 256-byte ring (see [`super::serial`]): the
+//!   DMA empties the data register within a few bus cycles of each byte, so no interrupt
+//!   latency (the control tick, the link task's locks) can overrun the receiver; the ring
+//!   is drained on an idle line and at least every tick.
+//! - Panic and HardFault (`crate::fail_safe`): [`force_bridge_off`] first (TIM1's main
+//!   output off and EN low by register writes), then the report; a panic then traps into
+//!   HardFault (`udf`, where probe-rs stops and prints the backtrace), and the HardFault
+//!   handler waits for the watchdog.
+//!
+//! defmt-rtt runs in non-blocking mode (its `disable-blocking-mode` feature, whatever mode
+//! probe-rs asks for): when the host reads too slowly or is detached, log frames are
+//! dropped instead of stalling the 1 kHz loop inside defmt's critical section.
 //!
 //! With a debugger attached and the core halted, TIM1 stops with its output forced low and
 //! the watchdog pauses (DBGMCU freeze bits), so a breakpoint neither drives the motor nor
 //! resets the board. Without a debugger the freeze bits have no effect.
 
-use super::{Board, IndependentClock, Parts, Serial, TickHooks, TickPlan};
+use super::serial::{self, RX_RING};
+use super::{Board, BridgeOutputs, IndependentClock, Parts, Serial, TickHooks, TickPlan};
 use crate::run_config::{IdleMode, RunConfig};
 use core::cell::RefCell;
 use core::convert::Infallible;
@@ -78,7 +122,7 @@ use model::sensors::{ENCODER_COUNTS, POT_COUNTS};
 use model::servo::{Servo, TickOutput};
 use model::supervisor::{Fault, SupervisorConfig};
 use model::{Design, Length};
-use panic_probe as _;
+use stm32f4xx_hal::dma::StreamsTuple;
 use stm32f4xx_hal::{
     gpio::{Alternate, Analog, Output, PinState, PushPull, PA0, PA1, PA10, PA6, PA7, PA8, PA9},
     prelude::*,
@@ -135,6 +179,19 @@ const _: () = assert!(ADC_POLL_LIMIT >= 7 * ADC_CONVERSION_CORE_CYCLES / 4);
 
 /// Wait after ADON before the first conversion: 5 µs > t_STAB (3 µs max, datasheet).
 const ADC_STABILISATION_CORE_CYCLES: u32 = 5 * (SYSCLK_HZ / 1_000_000);
+
+/// How long `init` waits for the HSE (the ST-LINK's 8 MHz MCO) to be ready before it runs
+/// from the HSI instead, ms (STM32Cube's `HSE_STARTUP_TIMEOUT`).
+const HSE_START_TIMEOUT_MS: u32 = 100;
+
+/// The core's clock from reset until the clock setup: the HSI, Hz.
+const HSI_HZ: u32 = 16_000_000;
+
+/// TIM1 counts by which the current sample's trigger leads the middle of the on-time: half
+/// the ADC's sampling window (56 ADC cycles × 180 MHz / 22.5 MHz / 2 = 224), so that the
+/// window is centred on it. Below twice this (448 counts, 50 ‰ duty) the trigger is at the
+/// start of the period and the window reaches into the off-time.
+const CURRENT_SAMPLE_LEAD_TICKS: u16 = (56 * (TIM1_CLOCK_HZ / ADC_CLOCK_HZ) / 2) as u16;
 
 /// Link encoder counts per turn (1024 lines × 4 edges).
 const LINK_COUNTS_PER_TURN: u16 = ENCODER_COUNTS;
@@ -215,9 +272,17 @@ fn init(device: pac::Peripherals) -> Parts<Nucleo> {
         );
     }
 
+    let source = if start_hse(&device.RCC) {
+        Config::hse(8.MHz()).bypass_hse_oscillator()
+    } else {
+        defmt::warn!(
+            "clock: the HSE (ST-LINK MCO, 8 MHz) was not ready within {=u32} ms; running from the HSI (±1 % at 25 °C, more over temperature)",
+            HSE_START_TIMEOUT_MS
+        );
+        Config::hsi()
+    };
     let mut rcc = device.RCC.freeze(
-        Config::hse(8.MHz())
-            .bypass_hse_oscillator()
+        source
             .sysclk(SYSCLK_HZ.Hz())
             .pclk1(PCLK1_HZ.Hz())
             .pclk2(PCLK2_HZ.Hz()),
@@ -235,7 +300,9 @@ fn init(device: pac::Peripherals) -> Parts<Nucleo> {
         clocks.timclk2().raw()
     );
 
-    // A debugger halting the core stops TIM1 with its output off and pauses the watchdog.
+    // A debugger halting the core stops TIM1 with its output off and pauses the watchdog;
+    // the core's clock keeps running in WFI, so a debugger can attach to the idle loop.
+    device.DBGMCU.cr().modify(|_, w| w.dbg_sleep().set_bit());
     device
         .DBGMCU
         .apb2_fz()
@@ -275,12 +342,16 @@ fn init(device: pac::Peripherals) -> Parts<Nucleo> {
     )
     .install();
 
-    // The host link: USART2 on the ST-LINK virtual COM port.
+    // The host link: USART2 on the ST-LINK virtual COM port, received by DMA1 stream 5.
     let _link_tx = gpioa.pa2.into_alternate::<7>();
     let _link_rx = gpioa.pa3.into_alternate::<7>();
     pac::USART2::enable(&mut rcc);
     pac::USART2::reset(&mut rcc);
-    let (serial_rx, serial_tx) = Serial::start(device.USART2, LINK_BRR);
+    let Some(ring) = cortex_m::singleton!(: [u8; RX_RING] = [0; RX_RING]) else {
+        defmt::panic!("host link: the receive ring was taken twice");
+    };
+    let dma1 = StreamsTuple::new(device.DMA1, &mut rcc);
+    let (serial_rx, serial_tx) = Serial::start(device.USART2, LINK_BRR, dma1.5, ring);
 
     let hooks = Watchdog::start(device.IWDG);
     let (servo, service) = default_servo();
@@ -294,6 +365,24 @@ fn init(device: pac::Peripherals) -> Parts<Nucleo> {
         serial_rx,
         serial_tx,
     }
+}
+
+/// Starts the HSE in bypass mode and waits at most [`HSE_START_TIMEOUT_MS`] for it; on a
+/// timeout turns it off again. Whether it is ready. (The HAL's `freeze` waits for it
+/// without a bound; called after this, it finds it ready at once.)
+fn start_hse(rcc: &pac::RCC) -> bool {
+    rcc.cr()
+        .modify(|_, w| w.hsebyp().bypassed().hseon().set_bit());
+    for _ in 0..HSE_START_TIMEOUT_MS {
+        if rcc.cr().read().hserdy().bit_is_set() {
+            return true;
+        }
+        // 1 ms on the HSI the core runs from until the clock setup.
+        cortex_m::asm::delay(HSI_HZ / 1_000);
+    }
+    rcc.cr()
+        .modify(|_, w| w.hseon().clear_bit().hsebyp().not_bypassed());
+    false
 }
 
 /// The clutch length the real board starts at, mm, until the host sets another.
@@ -336,8 +425,13 @@ impl MotorPwm {
         // CH1 output, PWM mode 1 (high while CNT < CCR1), CCR1 preloaded.
         tim.ccmr1_output()
             .write(|w| w.oc1m().pwm_mode1().oc1pe().set_bit());
-        // CH1 active high; no complementary output.
-        tim.ccer().write(|w| w.cc1e().set_bit());
+        // CH4: no pin (PA11 stays a GPIO); its compare event triggers the current sample,
+        // CCR4 preloaded so that it changes with CCR1.
+        tim.ccr4().write(|w| w.ccr().set(current_trigger(0)));
+        tim.ccmr2_output()
+            .write(|w| w.oc4m().pwm_mode1().oc4pe().set_bit());
+        // CH1 active high; no complementary output; CH4 on for its compare event.
+        tim.ccer().write(|w| w.cc1e().set_bit().cc4e().set_bit());
         // Main output on. OSSI: whenever MOE is off (debug halt), drive the idle level (OIS1
         // = 0, low) rather than leave the pin floating. No break input, no dead time.
         tim.bdtr().write(|w| w.ossi().set_bit().moe().set_bit());
@@ -349,6 +443,22 @@ impl MotorPwm {
             tim,
             _pin: pin.into_alternate::<1>(),
         }
+    }
+}
+
+/// CCR4 for a duty of `duty` TIM1 counts: the middle of the on-time less
+/// [`CURRENT_SAMPLE_LEAD_TICKS`], at least 1 (a compare at 0 coincides with the update);
+/// mid-period with the output off (any time reads the same).
+const fn current_trigger(duty: u16) -> u16 {
+    let centre = if duty == 0 {
+        PWM_PERIOD_TICKS / 2
+    } else {
+        duty / 2
+    };
+    if centre > CURRENT_SAMPLE_LEAD_TICKS {
+        centre - CURRENT_SAMPLE_LEAD_TICKS
+    } else {
+        1
     }
 }
 
@@ -366,6 +476,9 @@ impl embedded_hal::pwm::SetDutyCycle for MotorPwm {
     fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> {
         let duty = duty.min(PWM_PERIOD_TICKS);
         self.tim.ccr1().write(|w| w.ccr().set(duty));
+        self.tim
+            .ccr4()
+            .write(|w| w.ccr().set(current_trigger(duty)));
         if duty == 0 {
             // Update event: CCR1 = 0 is loaded now and the output goes low.
             self.tim.egr().write(|w| w.ug().set_bit());
@@ -383,11 +496,13 @@ impl LinkEncoder {
     fn new(tim: pac::TIM3, a: PA6, b: PA7, rcc: &mut pac::RCC) -> Self {
         // The HAL sets up encoder mode 3 (both edges of TI1 and TI2), ARR = 0xFFFF, and
         // the pins as AF2; the pins stay in that mode when their handles are dropped.
+        // Pull-ups first: the change to AF2 leaves PUPDR as it is.
+        let (a, b) = (a.internal_pull_up(true), b.internal_pull_up(true));
         let (tim, _pins) = Qei::new(tim, (a, b), rcc).release();
-        // Add an input filter (8 samples at f_CK_INT = 90 MHz) and start from 0.
+        // Input filter (8 samples at f_DTS / 16 = 5.625 MHz: 1.42 µs), start from 0.
         tim.cr1().modify(|_, w| w.cen().clear_bit());
         tim.ccmr1_input()
-            .modify(|_, w| w.ic1f().fck_int_n8().ic2f().fck_int_n8());
+            .modify(|_, w| w.ic1f().fdts_div16_n8().ic2f().fdts_div16_n8());
         tim.cnt().write(|w| w.cnt().set(0));
         tim.cr1().modify(|_, w| w.cen().set_bit());
         Self { tim }
@@ -416,14 +531,25 @@ impl AngleSensor for GearPot {
     }
 }
 
-/// The motor current sense: ADC1 channel 0 (PA0), 12-bit raw.
+/// The motor current sense: ADC1 channel 0 (PA0), 12-bit raw, sampled by TIM1 in every PWM
+/// period (see the module docs). The raw reading with the bridge off is the sensor's
+/// offset: boot-time calibration measures it through [`CurrentSensor::read_raw`] before the
+/// first enable.
 pub struct CurrentAdc {
     _adc: (),
 }
 
 impl CurrentSensor for CurrentAdc {
+    /// The latest PWM-synchronous sample; [`SensorError::Timeout`] if none completed since
+    /// the last read (TIM1 or the trigger stopped).
     fn read_raw(&mut self) -> Result<u16, SensorError> {
-        Adc1::convert_shared(CURRENT_CHANNEL)
+        interrupt::free(|cs| {
+            let Ok(adc) = ADC1.borrow(cs).try_borrow() else {
+                return Err(SensorError::Bus);
+            };
+            adc.as_ref()
+                .map_or(Err(SensorError::Device), Adc1::latest_current)
+        })
     }
 }
 
@@ -438,9 +564,9 @@ struct Adc1 {
 }
 
 impl Adc1 {
-    /// Powers ADC1 up for single software-started conversions (RM0390, ADC: single
-    /// conversion mode): 12-bit, right-aligned, one regular conversion, no scan, no DMA, no
-    /// interrupt.
+    /// Powers ADC1 up (RM0390, ADC): 12-bit, right-aligned, no scan, no DMA, no interrupt;
+    /// single software-started regular conversions (the pot), and one injected conversion
+    /// of the current on each rising TIM1 CC4 event.
     fn new(
         adc: pac::ADC1,
         common: &pac::ADC_COMMON,
@@ -457,13 +583,34 @@ impl Adc1 {
             w.smp(POT_CHANNEL).cycles56()
         });
         adc.sqr1().write(|w| w.l().set(0));
-        adc.cr2().write(|w| w.adon().set_bit());
+        // One injected conversion (JL = 0 converts JSQ4 alone).
+        // SAFETY: JSQ4 takes a channel number 0..=18; CURRENT_CHANNEL is 0.
+        adc.jsqr()
+            .write(|w| unsafe { w.jl().bits(0).jsq4().bits(CURRENT_CHANNEL) });
+        adc.cr2().write(|w| {
+            w.adon()
+                .set_bit()
+                .jextsel()
+                .tim1cc4()
+                .jexten()
+                .rising_edge()
+        });
         cortex_m::asm::delay(ADC_STABILISATION_CORE_CYCLES);
         Self {
             adc,
             _current: current,
             _pot: pot,
         }
+    }
+
+    /// The latest injected (current) result, if one completed since the last call.
+    fn latest_current(&self) -> Result<u16, SensorError> {
+        let adc = &self.adc;
+        if adc.sr().read().jeoc().bit_is_clear() {
+            return Err(SensorError::Timeout);
+        }
+        adc.sr().write(|w| w.jeoc().clear().jstrt().clear());
+        Ok(adc.jdr1().read().jdata().bits() & 0x0FFF)
     }
 
     fn install(self) {
@@ -550,9 +697,12 @@ impl TickHooks for Watchdog {
     /// The real world has no events to log.
     type Event = core::convert::Infallible;
 
-    /// Feeds the watchdog.
+    /// Feeds the watchdog; pends the USART2 interrupt if the receive ring holds bytes.
     fn before_step(&mut self, _io: &mut Io, _servo: &mut Servo) -> TickPlan {
         self.iwdg.kr().write(|w| w.key().feed());
+        if serial::rx_waiting() {
+            cortex_m::peripheral::NVIC::pend(pac::Interrupt::USART2);
+        }
         TickPlan { overrun: false }
     }
 
@@ -568,8 +718,58 @@ impl TickHooks for Watchdog {
     }
 }
 
-/// panic-probe reports defmt panics too.
-#[defmt::panic_handler]
-fn defmt_panic() -> ! {
-    panic_probe::hard_fault()
+/// The fail-safe of the real board (see `crate::fail_safe`): TIM1's main output off (the
+/// PWM pin to its idle level, low: OSSI) and EN low, by register writes that cannot fail
+/// (with TIM1 or GPIOA not yet clocked they are ignored, and the pins still float as from
+/// reset). Returns the outputs before and after.
+pub fn force_bridge_off() -> (BridgeOutputs, BridgeOutputs) {
+    // SAFETY: the register blocks of TIM1 and GPIOA, touched here only by single reads and
+    // writes: BDTR without MOE, CCR1 = 0, and BSRR (atomic) for PA10. The callers have
+    // interrupts masked, so no task can write them in between.
+    let (tim1, gpioa) = unsafe { (&*pac::TIM1::ptr(), &*pac::GPIOA::ptr()) };
+    let before = bridge_outputs(tim1, gpioa);
+    tim1.bdtr().write(|w| w.ossi().set_bit());
+    gpioa.bsrr().write(|w| w.br(EN_PIN).set_bit());
+    tim1.ccr1().write(|w| w.ccr().set(0));
+    (before, bridge_outputs(tim1, gpioa))
+}
+
+/// PA10, the bridge's enable.
+const EN_PIN: u8 = 10;
+
+/// The bridge outputs as the registers say: EN's output level; the duty of CCR1 while the
+/// main output is on, else 0.
+fn bridge_outputs(
+    tim1: &pac::tim1::RegisterBlock,
+    gpioa: &pac::gpioa::RegisterBlock,
+) -> BridgeOutputs {
+    let duty = if tim1.bdtr().read().moe().bit_is_set() {
+        u32::from(tim1.ccr1().read().ccr().bits()) * 1000 / u32::from(PWM_PERIOD_TICKS)
+    } else {
+        0
+    };
+    BridgeOutputs {
+        enabled: gpioa.odr().read().odr(EN_PIN).bit_is_set(),
+        duty_permille: duty.min(1000) as u16,
+    }
+}
+
+/// How a panic or HardFault ends on the real board, once the bridge is off and the report
+/// is out: a panic traps into HardFault (`udf`: probe-rs stops there and prints the
+/// backtrace, as with panic-probe); in the HardFault handler, wait for the watchdog.
+pub fn halt_after_fault() -> ! {
+    use cortex_m::peripheral::scb::{Exception, VectActive};
+    if cortex_m::peripheral::SCB::vect_active() != VectActive::Exception(Exception::HardFault) {
+        // UsageFault off, so that `udf` raises HardFault rather than UsageFault.
+        // SAFETY: one read-modify-write of SHCSR with interrupts masked.
+        unsafe {
+            (*cortex_m::peripheral::SCB::PTR)
+                .shcsr
+                .modify(|v| v & !(1 << 18));
+        }
+        cortex_m::asm::udf();
+    }
+    loop {
+        cortex_m::asm::nop();
+    }
 }

@@ -109,3 +109,9 @@ impl Board for Qemu {
         exit(passed)
     }
 }
+
+/// How a panic or HardFault ends on the emulated boards, once the bridge is off and the
+/// report is out: QEMU exits with failure.
+pub fn halt_after_fault() -> ! {
+    exit(false)
+}

@@ -7,7 +7,8 @@
 //! lines as they are, applies the scenario's injections and actions, and presents the new
 //! readings to the sensors (`plant::scenario` has the per-tick protocol).
 
-use super::{TickHooks, TickPlan};
+use super::{BridgeOutputs, TickHooks, TickPlan};
+use core::sync::atomic::{AtomicU32, Ordering};
 use drivers::sim::SimTickIo;
 use model::control::Config;
 use model::sensors::{ADC_COUNTS, ADC_MID, ENCODER_COUNTS, POT_COUNTS};
@@ -41,6 +42,50 @@ fn lines(io: &SimulatedIo) -> BridgeLines {
         forward: io.bridge.dir().is_high(),
         duty_permille: io.bridge.pwm().duty(),
     }
+}
+
+/// The emulated board's bridge outputs, what the simulated actuator is driven by: the
+/// driver's lines as latched at the end of each tick ([`TickHooks::after_step`]), packed
+/// as enable (bit 31), direction (bit 30) and duty ‰ (bits 0–15). A static, like a
+/// peripheral's output register, so that the panic and HardFault handlers can force them
+/// off with one store that cannot fail ([`force_bridge_off`]). All low at reset.
+static OUTPUTS: AtomicU32 = AtomicU32::new(0);
+
+const OUTPUT_ENABLE: u32 = 1 << 31;
+const OUTPUT_FORWARD: u32 = 1 << 30;
+
+/// Latches `l` onto the outputs.
+fn latch(l: BridgeLines) {
+    let mut bits = u32::from(l.duty_permille);
+    if l.enabled {
+        bits |= OUTPUT_ENABLE;
+    }
+    if l.forward {
+        bits |= OUTPUT_FORWARD;
+    }
+    OUTPUTS.store(bits, Ordering::Relaxed);
+}
+
+/// The outputs as the simulated actuator sees them.
+fn outputs() -> BridgeLines {
+    let bits = OUTPUTS.load(Ordering::Relaxed);
+    BridgeLines {
+        enabled: bits & OUTPUT_ENABLE != 0,
+        forward: bits & OUTPUT_FORWARD != 0,
+        duty_permille: (bits & 0xFFFF) as u16,
+    }
+}
+
+/// The fail-safe of the emulated boards (see `crate::fail_safe`): enable low and duty 0 by
+/// one store; returns the outputs before and after.
+pub fn force_bridge_off() -> (BridgeOutputs, BridgeOutputs) {
+    let seen = |l: BridgeLines| BridgeOutputs {
+        enabled: l.enabled,
+        duty_permille: l.duty_permille,
+    };
+    let before = seen(outputs());
+    OUTPUTS.store(0, Ordering::Relaxed);
+    (before, seen(outputs()))
 }
 
 /// The simulated actuator around the control step: a scripted scenario and its plant, or
@@ -114,12 +159,12 @@ impl TickHooks for Simulation {
     type Io = SimulatedIo;
     type Event = ScenarioEvent;
 
-    /// Start of a tick: the plant advances one period with the bridge lines as they are,
+    /// Start of a tick: the plant advances one period with the bridge outputs as they are,
     /// the new readings go to the sensors, a scenario's actions to the servo.
     fn before_step(&mut self, io: &mut SimulatedIo, servo: &mut Servo) -> TickPlan {
         let (r, overrun) = match &mut self.kind {
             SimulationKind::Scenario { run, actions } => {
-                let overrun = run.begin_tick(lines(io), actions);
+                let overrun = run.begin_tick(outputs(), actions);
                 for a in actions.iter() {
                     if let Err(e) = run.apply(servo, a) {
                         defmt::warn!("scenario action refused: {}", e);
@@ -128,14 +173,15 @@ impl TickHooks for Simulation {
                 (run.readings(), overrun)
             }
             SimulationKind::Served(plant) => {
-                (plant.tick(lines(io), servo.controller().schedule()), false)
+                (plant.tick(outputs(), servo.controller().schedule()), false)
             }
         };
         io.present(r.link_encoder, r.gear_pot, r.current_adc);
         TickPlan { overrun }
     }
 
-    /// End of a tick: a scenario's metrics, hash and fault timing.
+    /// End of a tick: the bridge lines onto the outputs; a scenario's metrics, hash and
+    /// fault timing.
     fn after_step(
         &mut self,
         servo: &Servo,
@@ -143,6 +189,7 @@ impl TickHooks for Simulation {
         late: Option<Fault>,
         io: &SimulatedIo,
     ) {
+        latch(lines(io));
         if let SimulationKind::Scenario { run, .. } = &mut self.kind {
             run.end_tick(servo, out, late, lines(io));
         }

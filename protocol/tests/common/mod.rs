@@ -152,6 +152,13 @@ pub fn request() -> impl Strategy<Value = Request> {
         Just(Request::Heartbeat),
         Just(Request::DisarmHeartbeat),
         Just(Request::GetLimits),
+        Just(Request::GetSensors),
+        (any::<i16>(), edge_u16(1, protocol::NUDGE_DURATION_MAX_MS)).prop_map(
+            |(duty_permille, duration_ms)| Request::Nudge {
+                duty_permille,
+                duration_ms
+            }
+        ),
     ]
 }
 
@@ -176,6 +183,8 @@ pub fn request_index(r: &Request) -> u32 {
         Request::Heartbeat => 15,
         Request::DisarmHeartbeat => 16,
         Request::GetLimits => 17,
+        Request::GetSensors => 18,
+        Request::Nudge { .. } => 19,
     }
 }
 
@@ -189,6 +198,7 @@ pub fn reply_index(r: &Reply) -> u32 {
         Reply::Telemetry(_) => 4,
         Reply::Limits(_) => 5,
         Reply::FaultPersists(_) => 6,
+        Reply::Sensors(_) => 7,
     }
 }
 
@@ -289,6 +299,22 @@ pub fn reply() -> impl Strategy<Value = Reply> {
         (fault_code(), any::<i32>(), any::<u32>()).prop_map(|(code, value, tick)| {
             Reply::FaultPersists(FaultRecord { code, value, tick })
         }),
+        (
+            any::<u32>(),
+            any::<u16>(),
+            prop::option::of(any::<u16>()),
+            any::<u16>(),
+            any::<i16>()
+        )
+            .prop_map(|(tick, link_encoder, gear_pot, current_adc, nudge)| {
+                Reply::Sensors(protocol::RawSensors {
+                    tick,
+                    link_encoder,
+                    gear_pot,
+                    current_adc,
+                    nudge_duty_permille: nudge,
+                })
+            }),
     ]
 }
 
@@ -314,6 +340,8 @@ pub enum Call {
     DisarmHeartbeat,
     Limits,
     Status,
+    RawSensors,
+    Nudge(i16, u16),
 }
 
 /// A device that records every call and keeps a little state, refusing like the
@@ -520,6 +548,20 @@ impl Device for MockDevice {
         self.persisting
     }
 
+    fn raw_sensors(&mut self) -> Result<protocol::RawSensors, ErrorCode> {
+        self.calls.push(Call::RawSensors);
+        Ok(protocol::RawSensors::default())
+    }
+
+    fn nudge(&mut self, duty_permille: i16, duration_ms: u16) -> Result<(), ErrorCode> {
+        self.calls.push(Call::Nudge(duty_permille, duration_ms));
+        if self.state == State::Disabled {
+            Ok(())
+        } else {
+            Err(ErrorCode::NotAllowed)
+        }
+    }
+
     fn status(&mut self) -> Status {
         self.calls.push(Call::Status);
         Status {
@@ -568,6 +610,11 @@ pub fn expected_call(r: &Request) -> Option<Call> {
         Request::Heartbeat => Call::Heartbeat,
         Request::DisarmHeartbeat => Call::DisarmHeartbeat,
         Request::GetLimits => Call::Limits,
+        Request::GetSensors => Call::RawSensors,
+        Request::Nudge {
+            duty_permille,
+            duration_ms,
+        } => Call::Nudge(duty_permille, duration_ms),
     })
 }
 

@@ -1,0 +1,68 @@
+//! The service closing the loop on the host, as the firmware's control tick does: the
+//! simulated actuator of a serving board (`plant::served`) → raw readings → servo → the
+//! actuator's bridge demand (a nudge's, or the servo's) → the bridge lines; protocol
+//! requests through the handler between ticks, as the link task applies them.
+
+use model::control::Config;
+use model::servo::{Servo, TickInput, TickOutput};
+use model::supervisor::SupervisorConfig;
+use model::{Design, Length};
+use plant::scenario::BridgeLines;
+use plant::served::ServedActuator;
+use protocol::{Frame, Handler, Reply, Request};
+use service::{Actuator, Service};
+
+use crate::common::Cell;
+
+/// A serving board without the UART.
+pub struct Bench {
+    pub actuator: Cell,
+    service: Service,
+    handler: Handler,
+    world: ServedActuator,
+    lines: BridgeLines,
+    seq: u16,
+}
+
+impl Bench {
+    /// The paper design at L = 3 mm, default supervision, `load_nm` hung on the link once
+    /// the motor drives.
+    pub fn new(load_nm: f32) -> Bench {
+        let design = Design::paper();
+        let config = Config::paper(Length::from_int(3));
+        let sup = SupervisorConfig::DEFAULT;
+        Bench {
+            actuator: Cell(Actuator::new(Servo::new(&design, &config, &sup).unwrap())),
+            service: Service::new(design, config, sup),
+            handler: Handler::new(),
+            world: ServedActuator::new(design, &config, load_nm).unwrap(),
+            lines: BridgeLines::default(),
+            seq: 0,
+        }
+    }
+
+    /// One request, answered.
+    pub fn ask(&mut self, req: Request) -> Reply {
+        self.seq += 1;
+        let mut dev = self.service.device(&mut self.actuator);
+        self.handler
+            .handle_request(Frame::new(self.seq, req), &mut dev)
+            .body
+    }
+
+    /// One control tick; no fault may latch.
+    pub fn step(&mut self) -> (TickInput, TickOutput) {
+        let a = &mut self.actuator.0;
+        let r = self.world.tick(self.lines, a.servo.controller().schedule());
+        let input = TickInput {
+            link_encoder: r.link_encoder,
+            gear_pot: Some(r.gear_pot),
+            current_adc: r.current_adc,
+            read_error: None,
+        };
+        let out = a.servo.tick(&input);
+        self.lines = BridgeLines::for_demand(a.open_loop.demand(&input, &out));
+        assert!(out.new_fault.is_none(), "fault {:?}", out.new_fault);
+        (input, out)
+    }
+}
