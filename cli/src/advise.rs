@@ -97,6 +97,10 @@ pub struct AdviseArgs {
     /// Constant load torque on the link (positive pushes the link positive) [default: 0Nm]
     #[arg(long, value_name = "T", allow_hyphen_values = true)]
     pub load: Option<String>,
+    /// Gravity arm m·g·l of the link, e.g. 0.2Nm: the link hangs straight down at the
+    /// task's centre and gravity pulls it back with −m·g·l·sin θ [default: 0Nm]
+    #[arg(long, value_name = "M·G·L", allow_hyphen_values = true)]
+    pub gravity: Option<String>,
     /// Clutch lengths: a list or START..END:STEP [default: 15 over t_c..l]
     #[arg(long, value_name = "LIST|RANGE", allow_hyphen_values = true)]
     pub lengths: Option<String>,
@@ -115,6 +119,8 @@ struct Task {
     amplitude_rad: f64,
     frequency_hz: f64,
     load_nm: f64,
+    /// Gravity arm m·g·l, N·m (≥ 0).
+    gravity_nm: f64,
     /// RMS of the motion about its mean, rad (the tracking tolerance's base).
     motion_rms_rad: f64,
     /// A trajectory instead of the sine.
@@ -146,9 +152,15 @@ pub fn run(args: &AdviseArgs) -> CliResult<String> {
         let k = design
             .stiffness(len)
             .map_err(|e| CliError::usage("--lengths", e.to_string()))?;
-        let natural_hz = model::natural_frequency(k, j_red)
-            .ok()
-            .map(|w| f(w.get()) / std::f64::consts::TAU);
+        let natural_hz = if task.gravity_nm == 0.0 {
+            model::natural_frequency(k, j_red)
+                .ok()
+                .map(|w| f(w.get()) / std::f64::consts::TAU)
+        } else {
+            let jg = f(cfg0.motor.rotor_inertia.get()) * 1e-6;
+            let jl = f(task.inertia.get()) * 1e-6;
+            Some(coupling_mode(k.get().to_num(), jg, jl, task.gravity_nm) / std::f64::consts::TAU)
+        };
         let cfg = config(&design, &task, len)?;
         let run = match &task.trajectory {
             None => energy_per_cycle(&design, &cfg, &motion),
@@ -168,7 +180,7 @@ pub fn run(args: &AdviseArgs) -> CliResult<String> {
             tracks: run.map(|r| r.rms_error_rad <= TRACKING_TOLERANCE * motion_rms),
         });
     }
-    let advice = Advice::new(&design, &task, j_red, rows)?;
+    let advice = Advice::new(&design, &task, &cfg0, j_red, rows)?;
     if let Some(path) = &args.figure {
         advice.figure(&task, path)?;
     }
@@ -220,6 +232,22 @@ fn parse_task(a: &AdviseArgs) -> CliResult<Task> {
         .ok_or_else(|| {
             CliError::usage("--load", format!("{load} is out of range [-100, 100] N·m"))
         })?;
+    let gravity_nm = match a.gravity.as_deref() {
+        None => 0.0,
+        Some(s) => {
+            let g = units::parse(s, Kind::Torque).map_err(|e| CliError::usage("--gravity", e))?;
+            g.value
+                .to_i32f32()
+                .map(f)
+                .filter(|v| !g.value.negative && *v <= 100.0)
+                .ok_or_else(|| {
+                    CliError::usage(
+                        "--gravity",
+                        format!("{g} is out of range [0, 100] N·m (m·g·l of a hanging link)"),
+                    )
+                })?
+        }
+    };
     if let Some(path) = &a.trajectory {
         let samples = read_trajectory(path)?;
         let period = samples.period_ticks;
@@ -237,6 +265,7 @@ fn parse_task(a: &AdviseArgs) -> CliResult<Task> {
             amplitude_rad: amp,
             frequency_hz: 1000.0 / f64::from(period),
             load_nm,
+            gravity_nm,
             motion_rms_rad: (sq / f64::from(period)).sqrt(),
             trajectory: Some(samples),
         });
@@ -246,12 +275,25 @@ fn parse_task(a: &AdviseArgs) -> CliResult<Task> {
         amplitude_rad: f(amplitude),
         frequency_hz: f(frequency),
         load_nm,
+        gravity_nm,
         motion_rms_rad: f(amplitude) / std::f64::consts::SQRT_2,
         trajectory: None,
     })
 }
 
 impl Task {
+    /// The gravity load in words (empty without one).
+    fn gravity_text(&self) -> String {
+        if self.gravity_nm == 0.0 {
+            String::new()
+        } else {
+            format!(
+                ", gravity m·g·l = {} N·m (hanging at the task's centre)",
+                sig(self.gravity_nm, 4)
+            )
+        }
+    }
+
     /// The motion in words.
     fn describe(&self) -> String {
         match &self.trajectory {
@@ -434,6 +476,25 @@ fn config(d: &Design, task: &Task, len: Length) -> CliResult<Config> {
         })
 }
 
+/// The coupling mode with gravity, rad/s: the larger root ω² of
+/// J_g·J_l·ω⁴ − (k·(J_g + J_l) + J_g·G)·ω² + G·k = 0 (the frequencies at which the
+/// lossless two-mass model needs no motor torque, G = m·g·l; SI units). Without gravity
+/// it is √(k/J_r), [`model::natural_frequency`]. f64: the gravity case only (host side).
+fn coupling_mode(k: f64, jg: f64, jl: f64, g: f64) -> f64 {
+    let (a, b, c) = (jg * jl, k * (jg + jl) + jg * g, g * k);
+    ((b + (b * b - 4.0 * a * c).max(0.0).sqrt()) / (2.0 * a)).sqrt()
+}
+
+/// The stiffness at which the lossless two-mass model needs no motor torque to make the
+/// link follow a sine of ω: T_m ∝ (G − J_l·ω²)·(1 − J_g·ω²/k) − J_g·ω² = 0, so
+/// k = J_g·ω²·(G − J_l·ω²)/(G − (J_g + J_l)·ω²) (G = m·g·l; J_r·ω² when G = 0); `None`
+/// when no positive stiffness does it (G between J_l·ω² and (J_g + J_l)·ω²). SI units.
+fn stiffness_for_task(omega: f64, jg: f64, jl: f64, g: f64) -> Option<f64> {
+    let w2 = omega * omega;
+    let k = jg * w2 * (g - jl * w2) / (g - (jg + jl) * w2);
+    (k.is_finite() && k > 0.0).then_some(k)
+}
+
 /// J_r = J_g·J_l/(J_g + J_l), kg·mm² (J_g: the configured gear-side inertia).
 fn reduced_inertia(cfg: &Config, j_link: Inertia) -> CliResult<Inertia> {
     let jg = f(cfg.motor.rotor_inertia.get());
@@ -452,6 +513,7 @@ fn motion(task: &Task) -> Motion {
         amplitude_rad: task.amplitude_rad,
         frequency_hz: task.frequency_hz,
         load_nm: task.load_nm,
+        gravity_nm: task.gravity_nm,
         cycles: match period_ticks {
             // Whole periods of the trajectory, at least AVERAGED_S.
             Some(p) => (AVERAGED_S * 1000.0 / f64::from(p)).ceil().max(1.0) as u32,
@@ -462,15 +524,23 @@ fn motion(task: &Task) -> Motion {
 
 /// "Resonance … is out of reach": `k` needed, `ratio` times `way` than the end `end_k` at
 /// L = `end`.
-fn out_of_reach(task: &Task, k: f64, ratio: f64, way: &str, end_k: f64, end: &str) -> String {
+fn out_of_reach(
+    task: &Task,
+    formula: &str,
+    k: f64,
+    ratio: f64,
+    way: &str,
+    end_k: f64,
+    end: &str,
+) -> String {
     let side = if way == "softer" {
         "softest"
     } else {
         "stiffest"
     };
     format!(
-        "Resonance with the task ({} Hz) is out of reach: it needs k = J_r·ω² = {} N·m/rad, {} \
-times {way} than the {side} setting ({} N·m/rad at L = {end}).",
+        "Resonance with the task ({} Hz) is out of reach: it needs k = {formula} = {} N·m/rad, \
+{} times {way} than the {side} setting ({} N·m/rad at L = {end}).",
         sig(task.frequency_hz, 4),
         sig(k, 3),
         sig(ratio, 3),
@@ -482,7 +552,11 @@ times {way} than the {side} setting ({} N·m/rad at L = {end}).",
 struct Advice {
     rows: Vec<Row>,
     best: Option<usize>,
-    tuning: Tuning,
+    /// Where the setting that needs no motor torque for the task lies; `None` when no
+    /// positive stiffness does it (gravity, see [`stiffness_for_task`]).
+    tuning: Option<Tuning>,
+    /// The formula of the stiffness needed, as printed.
+    formula: &'static str,
     stiffness_range: (f64, f64),
 }
 
@@ -507,6 +581,7 @@ struct JsonTask {
     amplitude_rad: f64,
     frequency_hz: f64,
     load_nm: f64,
+    gravity_nm: f64,
 }
 
 #[derive(Serialize)]
@@ -517,16 +592,35 @@ struct JsonAdvice {
     best_reason: String,
     resonance_reachable: bool,
     resonance_length_m: Option<f64>,
-    stiffness_needed_nm_per_rad: f64,
+    stiffness_needed_nm_per_rad: Option<f64>,
     stiffness_range_nm_per_rad: [f64; 2],
 }
 
 impl Advice {
-    fn new(d: &Design, task: &Task, j_red: Inertia, rows: Vec<Row>) -> CliResult<Advice> {
+    fn new(
+        d: &Design,
+        task: &Task,
+        cfg: &Config,
+        j_red: Inertia,
+        rows: Vec<Row>,
+    ) -> CliResult<Advice> {
         let omega = Frequency::from_hz(I32F32::from_num(task.frequency_hz))
             .map_err(|e| CliError::usage("--frequency", e.to_string()))?;
-        let tuning = d
-            .tune(j_red, omega, BeamModel::EulerBernoulli)
+        // The inertia whose k = J·ω² is the stiffness the task needs: J_r without gravity.
+        let (j_tune, formula) = if task.gravity_nm == 0.0 {
+            (Some(j_red), "J_r·ω²")
+        } else {
+            let w = f(omega.get());
+            let jg = f(cfg.motor.rotor_inertia.get()) * 1e-6;
+            let jl = f(task.inertia.get()) * 1e-6;
+            let j = stiffness_for_task(w, jg, jl, task.gravity_nm)
+                .and_then(|k| I32F32::checked_from_num(k / (w * w) * 1e6))
+                .map(Inertia::from_fixed);
+            (j, "J_g·ω²·(m·g·l − J_l·ω²)/(m·g·l − (J_g + J_l)·ω²)")
+        };
+        let tuning = j_tune
+            .map(|j| d.tune(j, omega, BeamModel::EulerBernoulli))
+            .transpose()
             .map_err(|e| CliError::usage("--frequency", e.to_string()))?;
         let (soft, stiff) = d.stiffness_range(BeamModel::EulerBernoulli);
         let best = rows
@@ -540,6 +634,7 @@ impl Advice {
             rows,
             best,
             tuning,
+            formula,
             stiffness_range: (soft.get().to_num(), stiff.get().to_num()),
         })
     }
@@ -578,18 +673,30 @@ that track the task",
     }
 
     fn resonance_text(&self, task: &Task) -> String {
-        let k = self.tuning.stiffness().get().to_num::<f64>();
+        let Some(tuning) = self.tuning else {
+            return format!(
+                "Resonance with the task ({} Hz) is out of reach at any stiffness: with \
+gravity m·g·l = {} N·m between J_l·ω² and (J_g + J_l)·ω², k = {} would be negative.",
+                sig(task.frequency_hz, 4),
+                sig(task.gravity_nm, 4),
+                self.formula
+            );
+        };
+        let k = tuning.stiffness().get().to_num::<f64>();
         let (soft, stiff) = self.stiffness_range;
-        match self.tuning {
+        let formula = self.formula;
+        match tuning {
             Tuning::InRange { length, .. } => format!(
-                "Resonance with the task ({} Hz) is reachable: k = J_r·ω² = {} N·m/rad at \
+                "Resonance with the task ({} Hz) is reachable: k = {formula} = {} N·m/rad at \
 L = {} mm.",
                 sig(task.frequency_hz, 4),
                 sig(k, 4),
                 sig(f(length.get()), 4)
             ),
-            Tuning::TooSoft { .. } => out_of_reach(task, k, soft / k, "softer", soft, "l"),
-            Tuning::TooStiff { .. } => out_of_reach(task, k, k / stiff, "stiffer", stiff, "t_c"),
+            Tuning::TooSoft { .. } => out_of_reach(task, formula, k, soft / k, "softer", soft, "l"),
+            Tuning::TooStiff { .. } => {
+                out_of_reach(task, formula, k, k / stiff, "stiffer", stiff, "t_c")
+            }
         }
     }
 
@@ -600,6 +707,7 @@ L = {} mm.",
                 amplitude_rad: task.amplitude_rad,
                 frequency_hz: task.frequency_hz,
                 load_nm: task.load_nm,
+                gravity_nm: task.gravity_nm,
             },
             rows: self
                 .rows
@@ -623,23 +731,24 @@ L = {} mm.",
                 .collect(),
             best_length_m: self.best.map(|i| f(self.rows[i].length.get()) * 1e-3),
             best_reason: self.reason(),
-            resonance_reachable: matches!(self.tuning, Tuning::InRange { .. }),
+            resonance_reachable: matches!(self.tuning, Some(Tuning::InRange { .. })),
             resonance_length_m: match self.tuning {
-                Tuning::InRange { length, .. } => Some(f(length.get()) * 1e-3),
+                Some(Tuning::InRange { length, .. }) => Some(f(length.get()) * 1e-3),
                 _ => None,
             },
-            stiffness_needed_nm_per_rad: self.tuning.stiffness().get().to_num(),
+            stiffness_needed_nm_per_rad: self.tuning.map(|t| t.stiffness().get().to_num()),
             stiffness_range_nm_per_rad: [self.stiffness_range.0, self.stiffness_range.1],
         }
     }
 
     fn render(&self, task: &Task, sigma: f64) -> String {
         let mut out = format!(
-            "Task: link {} kg·m², {}, load {} N·m; closed loop (vsa simulate's controller and \
+            "Task: link {} kg·m², {}, load {} N·m{}; closed loop (vsa simulate's controller and \
 simulated actuator), energies averaged over whole cycles.\n",
             sig(f(task.inertia.get()) * 1e-6, 4),
             task.describe(),
-            sig(task.load_nm, 4)
+            sig(task.load_nm, 4),
+            task.gravity_text()
         );
         let mut t = Table::new(&[
             ("L", "mm"),
@@ -710,7 +819,7 @@ simulated actuator), energies averaged over whole cycles.\n",
                 marker: false,
             },
         ];
-        if let Tuning::InRange { length, .. } = self.tuning {
+        if let Some(Tuning::InRange { length, .. }) = self.tuning {
             let x = f(length.get());
             series.push(Series {
                 label: Some(format!("resonance with the task, L = {} mm", sig(x, 3))),
@@ -737,10 +846,11 @@ simulated actuator), energies averaged over whole cycles.\n",
         }
         let fig = Figure {
             title: format!(
-                "Energy per cycle vs clutch length — link {} kg·m², {}, load {} N·m",
+                "Energy per cycle vs clutch length — link {} kg·m², {}, load {} N·m{}",
                 sig(f(task.inertia.get()) * 1e-6, 3),
                 task.describe(),
-                sig(task.load_nm, 3)
+                sig(task.load_nm, 3),
+                task.gravity_text()
             ),
             panels: vec![Panel {
                 caption: self.resonance_text(task),

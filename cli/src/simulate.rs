@@ -4,10 +4,15 @@
 //!
 //! ```text
 //! vsa simulate [--clutch-length 3mm | --stiffness 250Nm/rad] [--inertia 1e-3] [--load 0.3Nm]
-//!              (--step 0.5rad | --move 0.5rad:200ms | --sine 0.2rad:1Hz)
+//!              (--step 0.5rad | --move 0.5rad:200ms | --sine 0.2rad:1Hz
+//!               | --impedance 0.3rad:20Nm/rad:0.2Nms/rad[:0.1Nm])
 //!              [--seconds 2] [--csv FILE] [--json] [--no-pot] [--settle 0.5]
 //!              [--plant NAME=VALUE]...
 //! ```
+//!
+//! `--impedance` holds the target with a virtual stiffness, damping and feed-forward torque
+//! (`model::control::impedance`); the report adds the link's deflection at rest against
+//! (load + τ_ff)/k_v.
 //!
 //! `--plant` makes the simulated actuator off-nominal (`plant::overrides`: e.g.
 //! `resistance=x1.3`, `supply=11.8V`, `pot-offset=3`); the controller keeps its nominal
@@ -22,8 +27,8 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 
 use client::protocol::TARGET_MAX_URAD;
-use model::control::{ClutchSetting, Command, Config, ControlError};
-use model::{Angle, Design, Frequency, Inertia, Length, Stiffness};
+use model::control::{ClutchSetting, Command, Config, ControlError, ImpedanceCommand};
+use model::{Angle, Design, Frequency, Inertia, Length, Stiffness, Torque};
 use plant::harness::{self, Metrics, Sample, Scenario};
 use plant::overrides::Overrides;
 
@@ -32,7 +37,7 @@ use crate::output;
 
 /// Arguments of `vsa simulate`.
 #[derive(clap::Args, Debug, Clone)]
-#[command(group(clap::ArgGroup::new("command").required(true).args(["step", "move_to", "sine"])))]
+#[command(group(clap::ArgGroup::new("command").required(true).args(["step", "move_to", "sine", "impedance"])))]
 pub struct SimulateArgs {
     /// Clutch (active beam) length, e.g. `3mm` (default 3 mm).
     #[arg(long, value_name = "LENGTH", conflicts_with = "stiffness")]
@@ -64,6 +69,11 @@ pub struct SimulateArgs {
     /// Sine about the start position `AMPLITUDE:FREQUENCY`, e.g. `0.2rad:1Hz`.
     #[arg(long, value_name = "AMPLITUDE:FREQUENCY", allow_hyphen_values = true)]
     pub sine: Option<String>,
+    /// Impedance command `ANGLE:STIFFNESS:DAMPING[:TORQUE]`: hold the angle with a virtual
+    /// stiffness (at most the joint's), damping and feed-forward torque, e.g.
+    /// `0.3rad:20Nm/rad:0.2Nms/rad` or `0.3rad:20Nm/rad:0.2Nms/rad:0.1Nm`.
+    #[arg(long, value_name = "A:K:D[:T]", allow_hyphen_values = true)]
+    pub impedance: Option<String>,
     /// Run time after the command, s.
     #[arg(long, value_name = "S", default_value = "2")]
     pub seconds: String,
@@ -146,6 +156,12 @@ const ANGLE: &[(&str, f64)] = &[
 ];
 const TIME_S: &[(&str, f64)] = &[("s", 1.0), ("ms", 1e-3)];
 const FREQ_RAD_S: &[(&str, f64)] = &[("Hz", std::f64::consts::TAU), ("rad/s", 1.0)];
+const DAMPING: &[(&str, f64)] = &[
+    ("Nms/rad", 1.0),
+    ("N·m·s/rad", 1.0),
+    ("N.m.s/rad", 1.0),
+    ("mNms/rad", 1e-3),
+];
 const INERTIA: &[(&str, f64)] = &[
     ("kgm2", 1.0),
     ("kg·m²", 1.0),
@@ -233,7 +249,46 @@ fn command(args: &SimulateArgs) -> Result<(Command, Option<f64>), String> {
             Some(std::f64::consts::TAU / w),
         ));
     }
-    Err("give one of --step, --move, --sine".into())
+    if args.impedance.is_some() {
+        // The impedance command replaces it (`impedance`).
+        return Ok((Command::Hold, None));
+    }
+    Err("give one of --step, --move, --sine, --impedance".into())
+}
+
+/// The `--impedance` command, if given, and its expected static deflection per N·m of
+/// load plus τ_ff/k_v, rad.
+fn impedance(args: &SimulateArgs) -> Result<Option<(ImpedanceCommand, f64, f64)>, String> {
+    let Some(s) = &args.impedance else {
+        return Ok(None);
+    };
+    let what = "--impedance";
+    let parts: Vec<&str> = s.split(':').collect();
+    let [a, k, d, rest @ ..] = parts.as_slice() else {
+        return Err(format!(
+            "{what} `{s}`: expected `ANGLE:STIFFNESS:DAMPING[:TORQUE]`, e.g. \
+             `0.3rad:20Nm/rad:0.2Nms/rad`"
+        ));
+    };
+    let t = match rest {
+        [] => 0.0,
+        [t] => parse(t, "--impedance torque", TORQUE)?,
+        _ => return Err(format!("{what} `{s}`: more than four fields")),
+    };
+    let k = parse(k, "--impedance stiffness", STIFFNESS)?;
+    let d = parse(d, "--impedance damping", DAMPING)?;
+    if k <= 0.0 {
+        return Err(format!("{what}: stiffness {k} N·m/rad is not positive"));
+    }
+    let cmd = ImpedanceCommand {
+        target: angle(parse(a, "--impedance angle", ANGLE)?, what)?,
+        stiffness: Stiffness::from_micro(micro(k, "--impedance stiffness")?),
+        damping: fixed::types::I32F32::checked_from_num(d)
+            .ok_or_else(|| format!("{what}: damping {d} N·m·s/rad is out of range"))?,
+        torque: Torque::from_micro(micro(t, "--impedance torque")?)
+            .map_err(|e| format!("{what} torque: {e}"))?,
+    };
+    Ok(Some((cmd, 1.0 / k, t / k)))
 }
 
 /// A time in ticks (ms), within [`min_ms`, 3600 s].
@@ -336,10 +391,17 @@ pub fn csv_row(s: &Sample) -> String {
     )
 }
 
-/// Runs the scenario, each tick into `writer` if any (flushed at the end).
-fn run_with(sc: &Scenario, writer: &mut Option<BufWriter<File>>) -> Result<Metrics, String> {
+/// Runs the scenario, each tick into `writer` if any (flushed at the end). Also returns the
+/// mean true link angle over the steady window, rad.
+fn run_with(sc: &Scenario, writer: &mut Option<BufWriter<File>>) -> Result<(Metrics, f64), String> {
     let mut io_err: Option<std::io::Error> = None;
+    let window_from = (sc.settle_ticks + sc.run_ticks).saturating_sub(sc.steady_window_ticks);
+    let (mut sum, mut n) = (0.0, 0u32);
     let m = harness::run(sc, |s| {
+        if s.tick >= window_from {
+            sum += s.link_angle_rad;
+            n += 1;
+        }
         if let (Some(w), None) = (writer.as_mut(), io_err.as_ref()) {
             if let Err(e) = writeln!(w, "{}", csv_row(s)) {
                 io_err = Some(e);
@@ -353,7 +415,7 @@ fn run_with(sc: &Scenario, writer: &mut Option<BufWriter<File>>) -> Result<Metri
     if let Some(w) = writer {
         w.flush().map_err(|e| format!("--csv: {e}"))?;
     }
-    Ok(m)
+    Ok((m, sum / f64::from(n.max(1))))
 }
 
 /// Runs `vsa simulate`.
@@ -373,6 +435,8 @@ pub fn run(args: &SimulateArgs) -> Result<(), String> {
         ));
     }
     let mut sc = Scenario::new(cfg, cmd);
+    let imp = impedance(args)?;
+    sc.impedance = imp.map(|i| i.0);
     sc.plant = overrides(args)?;
     sc.design = Design::paper();
     sc.load_nm = load as f32;
@@ -394,8 +458,18 @@ pub fn run(args: &SimulateArgs) -> Result<(), String> {
         };
         format!("{arg}: {e}")
     })?;
+    if let Some((c, _, _)) = &imp {
+        if c.stiffness > sched.stiffness() {
+            return Err(format!(
+                "--impedance: virtual stiffness {} N·m/rad is above the joint's k = {:.3} \
+                 N·m/rad at this clutch setting",
+                c.stiffness.get().to_num::<f64>(),
+                sched.stiffness().get().to_num::<f64>()
+            ));
+        }
+    }
     // The CSV goes to a temporary file, renamed over `--csv` only if the run succeeds.
-    let m = match &args.csv {
+    let (m, rest_rad) = match &args.csv {
         None => run_with(&sc, &mut None)?,
         Some(path) => {
             let mut metrics = Err(String::new());
@@ -421,7 +495,17 @@ pub fn run(args: &SimulateArgs) -> Result<(), String> {
     };
 
     if args.json {
-        println!("{}", metrics_json(&m, period_s.is_some()));
+        let json = metrics_json(&m, period_s.is_some());
+        match &imp {
+            // The impedance figures: the deflection at rest and (load + τ_ff)/k_v.
+            Some((c, per_nm, ff)) => println!(
+                "{},\"deflection_rad\":{},\"expected_deflection_rad\":{}}}",
+                json.trim_end_matches('}'),
+                rest_rad - c.target.get().to_num::<f64>(),
+                load * per_nm + ff
+            ),
+            None => println!("{json}"),
+        }
         return Ok(());
     }
     let k = sched.stiffness().get().to_num::<f64>();
@@ -432,7 +516,16 @@ pub fn run(args: &SimulateArgs) -> Result<(), String> {
         sched.torque_limit().get().to_num::<f64>()
     );
     let ms = |v: Option<f64>| v.map_or("–".to_string(), |t| format!("{:.0} ms", t * 1e3));
-    if period_s.is_none() {
+    if let Some((c, per_nm, ff)) = &imp {
+        let target = c.target.get().to_num::<f64>();
+        println!(
+            "deflection at rest {:+.5} rad ({:+.2} counts) from the target; \
+             (load + τ_ff)/k_v = {:+.5} rad",
+            rest_rad - target,
+            (rest_rad - target) / plant::ENCODER_COUNT_RAD,
+            load * per_nm + ff
+        );
+    } else if period_s.is_none() {
         println!("overshoot          {:.2} %", m.overshoot_pct);
         println!("rise time 10–90 %  {}", ms(m.rise_time_s));
         println!("settling (±1 cnt)  {}", ms(m.settling_time_s));

@@ -40,6 +40,8 @@ pub enum Kind {
     Volume,
     /// A moment of inertia, unit kg·mm² (the model's [`model::Inertia`]).
     Inertia,
+    /// A rotary damping, unit N·m·s/rad.
+    Damping,
 }
 
 /// Torque unit spellings and their power of ten relative to N·m.
@@ -101,6 +103,15 @@ impl Kind {
                 ("kgmm2", 0),
                 ("kg*mm2", 0),
             ]),
+            Kind::Damping => own(&[
+                ("Nms/rad", 0),
+                ("N*m*s/rad", 0),
+                ("N·m·s/rad", 0),
+                ("N.m.s/rad", 0),
+                ("mNms/rad", -3),
+                ("mN*m*s/rad", -3),
+                ("mN·m·s/rad", -3),
+            ]),
         }
     }
 
@@ -118,6 +129,7 @@ impl Kind {
             Kind::Mass => "g",
             Kind::Volume => "mm³",
             Kind::Inertia => "kg·mm²",
+            Kind::Damping => "N·m·s/rad",
         }
     }
 
@@ -135,6 +147,7 @@ impl Kind {
             Kind::Mass => "g, mg, kg",
             Kind::Volume => "mm3, cm3",
             Kind::Inertia => "kgm2 (or kg*m2, kg·m²), gcm2, kgmm2",
+            Kind::Damping => "Nms/rad (or N*m*s/rad, N·m·s/rad), mNms/rad",
         }
     }
 }

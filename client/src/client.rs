@@ -60,6 +60,8 @@ pub struct Stats {
     pub telemetry: u64,
     /// Telemetry samples dropped by the client because its buffer was full.
     pub telemetry_overflow: u64,
+    /// Requests sent again (same `seq`) because no reply came (see [`Client::set_retries`]).
+    pub retries: u64,
 }
 
 fn bump(c: &mut u64) {
@@ -91,7 +93,14 @@ pub struct Client {
     got: Option<Reply>,
     line_error: Option<ErrorCode>,
     flushed: bool,
+    retries: u32,
+    /// While waiting for a reply: give up on this attempt at once when the board reports a
+    /// frame it could not decode (ours may have been the one the line corrupted).
+    retry_on_line_error: bool,
 }
+
+/// Times an unanswered request is sent again, by default.
+pub const DEFAULT_RETRIES: u32 = 2;
 
 impl std::fmt::Debug for Client {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -122,7 +131,17 @@ impl Client {
             got: None,
             line_error: None,
             flushed: false,
+            retries: DEFAULT_RETRIES,
+            retry_on_line_error: false,
         }
+    }
+
+    /// How many times an unanswered request is sent again with the same `seq` (the board
+    /// answers a repeat with the reply it already gave, without carrying the request out
+    /// twice). Each attempt waits [`Client::timeout`], or less when the board reports a
+    /// frame it could not decode meanwhile. 0: never.
+    pub fn set_retries(&mut self, retries: u32) {
+        self.retries = retries;
     }
 
     /// Connects over TCP to `addr` (`host:port`), waiting at most the default timeout.
@@ -228,6 +247,11 @@ impl Client {
     /// flushed.
     fn send(&mut self, req: Request) -> Result<u16> {
         let seq = self.alloc_seq();
+        self.send_as(seq, req)
+    }
+
+    /// [`Client::send`] with a given `seq` (a retry).
+    fn send_as(&mut self, seq: u16, req: Request) -> Result<u16> {
         let frame = encode_to_vec(&Frame::new(seq, req)).map_err(Error::Encode)?;
         let r = if self.flushed {
             self.transport.write_all(&frame)
@@ -253,7 +277,21 @@ impl Client {
         if matches!(req, Request::Heartbeat) {
             self.last_heartbeat = Some(Instant::now());
         }
-        match self.wait_for(&[seq], self.timeout, name)? {
+        let mut attempts = 0;
+        let reply = loop {
+            self.retry_on_line_error = attempts < self.retries;
+            let r = self.wait_for(&[seq], self.timeout, name);
+            self.retry_on_line_error = false;
+            match r {
+                Err(Error::Timeout { .. }) if attempts < self.retries => {
+                    attempts += 1;
+                    bump(&mut self.stats.retries);
+                    self.send_as(seq, req)?;
+                }
+                r => break r?,
+            }
+        };
+        match reply {
             Reply::Error(code) => Err(Error::Refused {
                 request: name,
                 code,
@@ -262,7 +300,7 @@ impl Client {
         }
     }
 
-    fn request_ok(&mut self, req: Request) -> Result<()> {
+    pub(crate) fn request_ok(&mut self, req: Request) -> Result<()> {
         match self.request(req)? {
             Reply::Ok => Ok(()),
             reply => Err(Error::UnexpectedReply {
@@ -284,7 +322,8 @@ impl Client {
                 bump(&mut self.stats.replies);
                 break Ok(r);
             }
-            if Instant::now() >= deadline {
+            if Instant::now() >= deadline || (self.retry_on_line_error && self.line_error.is_some())
+            {
                 break Err(Error::Timeout {
                     request: name,
                     timeout,
@@ -593,6 +632,27 @@ impl Client {
         self.request_ok(Request::Sine {
             amplitude_urad,
             frequency_mhz,
+        })
+    }
+
+    /// [`Request::Impedance`]: hold `target_urad` µrad with virtual stiffness
+    /// `stiffness_mnm_per_rad` mN·m/rad, damping `damping_unms_per_rad` µN·m·s/rad and
+    /// feed-forward torque `torque_unm` µN·m.
+    ///
+    /// # Errors
+    /// As [`Client::ping`]; the board refuses a stiffness above the joint's.
+    pub fn impedance(
+        &mut self,
+        target_urad: i32,
+        stiffness_mnm_per_rad: u32,
+        damping_unms_per_rad: u32,
+        torque_unm: i32,
+    ) -> Result<()> {
+        self.request_ok(Request::Impedance {
+            target_urad,
+            stiffness_mnm_per_rad,
+            damping_unms_per_rad,
+            torque_unm,
         })
     }
 

@@ -20,8 +20,8 @@ use std::time::{Duration, Instant};
 
 use protocol::{
     encode_to_vec, telemetry_frame, Decoder, Device, ErrorCode, FaultCode, FaultRecord, FaultSet,
-    Frame, Gains, Handler, LimitFlags, Limits, Reply, Request, State, Status, TelemetrySample,
-    CLUTCH_MAX_UM, CLUTCH_MIN_UM,
+    Frame, Gains, Handler, LimitFlags, Limits, LoggedFault, Reply, Request, State, Status,
+    TelemetrySample, CLUTCH_MAX_UM, CLUTCH_MIN_UM,
 };
 
 use crate::names::request_name;
@@ -85,6 +85,11 @@ pub struct MockDevice {
     pub log: Vec<Request>,
     /// The current tick (ms since the fake started).
     pub tick: u32,
+    /// The settings store: the saved configuration (clutch µm, gains, limits), `None`
+    /// when nothing is saved (the defaults).
+    pub stored: Option<(u32, Option<Gains>, Limits)>,
+    /// The stored fault log, oldest first (every latched fault).
+    pub fault_log: Vec<LoggedFault>,
 }
 
 impl Default for MockDevice {
@@ -105,6 +110,8 @@ impl Default for MockDevice {
             command_timeout_ms: COMMAND_TIMEOUT_MS,
             log: Vec::new(),
             tick: 0,
+            stored: None,
+            fault_log: Vec::new(),
         }
     }
 }
@@ -146,7 +153,25 @@ impl MockDevice {
                 tick: self.tick,
             });
             self.state = State::Faulted;
+            let seq = u32::try_from(self.fault_log.len()).unwrap_or(u32::MAX);
+            let fault = FaultRecord {
+                code,
+                value,
+                tick: self.tick,
+            };
+            self.fault_log.push(LoggedFault { seq, fault });
         }
+    }
+
+    /// The running configuration as the fake stores it.
+    fn running(&self) -> (u32, Option<Gains>, Limits) {
+        (self.clutch_length_um, self.gains, self.limits)
+    }
+
+    /// The stored configuration, or the defaults.
+    fn stored_or_default(&self) -> (u32, Option<Gains>, Limits) {
+        self.stored
+            .unwrap_or_else(|| MockDevice::default().running())
     }
 
     /// The link angle (the fake follows the reference), µrad.
@@ -284,6 +309,15 @@ impl Device for MockDevice {
         self.limits
     }
 
+    /// As the firmware: refused above the joint's stiffness; the fake link goes to the
+    /// target (no external torque on it).
+    fn impedance(&mut self, target_urad: i32, k: u32, _d: u32, _t: i32) -> Result<(), ErrorCode> {
+        if k > self.stiffness_mnm_per_rad {
+            return Err(ErrorCode::OutOfRange);
+        }
+        self.motion_to(target_urad)
+    }
+
     fn persisting_fault(&mut self) -> Option<FaultRecord> {
         let link = self.link_urad();
         (self.faults.contains(FaultCode::PositionLimit) && !self.within_window(link)).then_some(
@@ -308,7 +342,40 @@ impl Device for MockDevice {
             telemetry_rate_hz: self.telemetry_rate_hz,
             telemetry_dropped: self.telemetry_dropped,
             protocol_errors: 0,
+            differs_from_stored: self.running() != self.stored_or_default(),
         }
+    }
+
+    fn save(&mut self) -> Result<(), ErrorCode> {
+        if self.state == State::Enabled {
+            return Err(ErrorCode::NotAllowed);
+        }
+        self.stored = Some(self.running());
+        Ok(())
+    }
+
+    fn load(&mut self) -> Result<(), ErrorCode> {
+        let (clutch, gains, limits) = self.stored_or_default();
+        self.clutch_length_um = clutch;
+        self.stiffness_mnm_per_rad = stiffness(clutch);
+        (self.gains, self.limits) = (gains, limits);
+        Ok(())
+    }
+
+    fn factory_reset(&mut self) -> Result<(), ErrorCode> {
+        if self.state == State::Enabled {
+            return Err(ErrorCode::NotAllowed);
+        }
+        self.stored = None;
+        self.fault_log.clear();
+        self.load()
+    }
+
+    fn faults_log(&mut self, index: u8) -> Result<(u8, Option<LoggedFault>), ErrorCode> {
+        // The store keeps the last 16.
+        let kept = &self.fault_log[self.fault_log.len().saturating_sub(16)..];
+        let count = u8::try_from(kept.len()).unwrap_or(u8::MAX);
+        Ok((count, kept.iter().rev().nth(usize::from(index)).copied()))
     }
 }
 

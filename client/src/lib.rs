@@ -37,11 +37,14 @@ pub mod fake;
 mod names;
 pub mod qemu;
 mod record;
+mod settings;
 mod transport;
 
 use std::time::Duration;
 
-pub use client::{Client, Stats, TelemetryFrame, DEFAULT_TELEMETRY_CAPACITY, DEFAULT_TIMEOUT};
+pub use client::{
+    Client, Stats, TelemetryFrame, DEFAULT_RETRIES, DEFAULT_TELEMETRY_CAPACITY, DEFAULT_TIMEOUT,
+};
 pub use names::{
     describe_fault, fault_name, fault_value_unit, persisting_advice, request_name, state_name,
     urad_text,

@@ -26,6 +26,11 @@ pub const fn request_name(req: &Request) -> &'static str {
         Request::GetLimits => "get-limits",
         Request::GetSensors => "get-sensors",
         Request::Nudge { .. } => "nudge",
+        Request::Save => "save",
+        Request::Load => "load",
+        Request::FactoryReset => "factory-reset",
+        Request::FaultsLog { .. } => "faults-log",
+        Request::Impedance { .. } => "impedance",
     }
 }
 
@@ -58,6 +63,7 @@ pub const fn fault_value_unit(code: FaultCode) -> &'static str {
         FaultCode::PositionLimit => "µrad",
         FaultCode::DeadlineMissed => "sysclk counts",
         FaultCode::CommandTimeout => "ms",
+        FaultCode::ClutchMismatch => "‰ of the configured compliance",
     }
 }
 
@@ -150,6 +156,11 @@ pub fn persisting_advice(r: &FaultRecord, limits: Option<&Limits>) -> String {
         FaultCode::CommandTimeout => "heartbeats are still armed and late: send one, or \
              disarm them"
             .to_string(),
+        FaultCode::ClutchMismatch => format!(
+            "the beams are {}‰ as compliant as configured: measure the clutch length and \
+             configure it (`clutch`), or slide the clutch to the configured length",
+            r.value
+        ),
     };
     format!(
         "{} (code {}) persists at tick {}: {what}",

@@ -6,7 +6,7 @@
 //!
 //! ```text
 //! qemu-system-arm -machine netduinoplus2 -display none -monitor none
-//!     -serial null -serial tcp:127.0.0.1:PORT
+//!     -serial null -serial tcp:127.0.0.1:PORT,nodelay=on
 //!     -semihosting-config enable=on,target=native,arg=vsa-firmware,arg=--serve[,arg=…]
 //!     -icount shift=3,sleep=on,align=on -kernel ELF
 //! ```
@@ -442,6 +442,31 @@ impl LogSink {
     }
 }
 
+pub use store::FLASH_FILE_PATH_MAX as FLASH_PATH_MAX;
+
+/// `path` as the firmware's `--flash` argument: the semihosting command line is split at
+/// spaces and QEMU's option at commas, so neither may appear; at most [`FLASH_PATH_MAX`]
+/// bytes.
+///
+/// # Errors
+/// Why the path cannot be passed, as a phrase for the user.
+pub fn flash_file_arg(path: &Path) -> std::result::Result<String, String> {
+    let s = path
+        .to_str()
+        .ok_or_else(|| format!("'{}' is not UTF-8", path.display()))?;
+    if s.is_empty() || s.contains([',', ' ', '\t', '\n']) {
+        return Err(format!(
+            "'{s}': the emulated board takes a path without spaces or commas"
+        ));
+    }
+    if s.len() > FLASH_PATH_MAX {
+        return Err(format!(
+            "'{s}' is longer than the emulated board's {FLASH_PATH_MAX} bytes"
+        ));
+    }
+    Ok(s.to_owned())
+}
+
 /// How to run an emulated board.
 #[derive(Clone, Debug)]
 pub struct QemuOptions {
@@ -489,7 +514,8 @@ impl QemuOptions {
         let mut argv = vec!["vsa-firmware".to_owned(), "--serve".to_owned()];
         argv.extend(self.firmware_args.iter().cloned());
         let mut serials = vec!["null".to_owned(); self.serial_index];
-        serials.push(format!("tcp:127.0.0.1:{serial_port}"));
+        // nodelay: a status written byte by byte must not wait for an ACK (Nagle).
+        serials.push(format!("tcp:127.0.0.1:{serial_port},nodelay=on"));
         QemuCommand {
             qemu: self.qemu.clone(),
             machine: self.board.machine().to_owned(),
@@ -750,7 +776,7 @@ mod tests {
             c.semihosting().unwrap(),
             "enable=on,target=native,arg=vsa-firmware,arg=--serve"
         );
-        assert_eq!(c.serials, ["null", "tcp:127.0.0.1:4000"]);
+        assert_eq!(c.serials, ["null", "tcp:127.0.0.1:4000,nodelay=on"]);
         let line: Vec<String> = c
             .command()
             .unwrap()
@@ -760,7 +786,7 @@ mod tests {
         assert_eq!(
             line.join(" "),
             "-machine netduinoplus2 -display none -monitor none -serial null -serial \
-             tcp:127.0.0.1:4000 -semihosting-config enable=on,target=native,arg=vsa-firmware,\
+             tcp:127.0.0.1:4000,nodelay=on -semihosting-config enable=on,target=native,arg=vsa-firmware,\
              arg=--serve -icount shift=3,sleep=on,align=on -kernel x"
         );
         o.firmware_args = vec!["--seconds".into(), "3".into()];

@@ -137,16 +137,24 @@ pub struct Counters {
     pub framing_errors: u32,
 }
 
-/// One Dynamixel device over a [`Backend`]. It speaks the protocol of the backend's
-/// Protocol Type (1 or 2; anything else is taken as 1).
+/// One Dynamixel device over a [`Backend`] it owns: a [`Port`] and its backend. It speaks
+/// the protocol of the backend's Protocol Type (1 or 2; anything else is taken as 1).
 pub struct Device<B> {
-    core: Core<B>,
+    port: Port,
+    backend: B,
+}
+
+/// A device's bus state without its backend: the decoders, the protocol spoken, Lock, the
+/// registered instruction, a held SYNC/BULK READ reply and the counters. For a backend that
+/// only exists for the length of a call (the firmware's, which borrows the actuator under
+/// a lock): keep the `Port`, and hand it the backend in [`Port::poll`].
+pub struct Port {
+    st: State,
     rx1: v1::Decoder,
     rx2: v2::Decoder,
 }
 
-struct Core<B> {
-    backend: B,
+struct State {
     protocol: Protocol,
     /// Lock (1.0, address 47): EEPROM writes refused until the device is made anew.
     locked: bool,
@@ -154,6 +162,12 @@ struct Core<B> {
     /// A SYNC/BULK READ reply held until the status of the ID before ours is heard.
     chain: Option<(u8, Reply)>,
     counters: Counters,
+}
+
+/// The bus state and the backend of one call.
+struct Core<'a, B: ?Sized> {
+    backend: &'a mut B,
+    st: &'a mut State,
 }
 
 struct Pending {
@@ -166,11 +180,61 @@ type Data = Vec<u8, MAX_DATA>;
 impl<B: Backend> Device<B> {
     /// A device over `backend`, in the protocol its Protocol Type names.
     pub fn new(mut backend: B) -> Self {
+        Device {
+            port: Port::new(&mut backend),
+            backend,
+        }
+    }
+
+    /// The protocol being spoken.
+    pub fn protocol(&self) -> Protocol {
+        self.port.protocol()
+    }
+
+    /// The backend.
+    pub fn backend(&self) -> &B {
+        &self.backend
+    }
+
+    /// The backend, mutably (the firmware's tick updates the actuator's state through it).
+    pub fn backend_mut(&mut self) -> &mut B {
+        &mut self.backend
+    }
+
+    /// What the device has heard.
+    pub fn counters(&self) -> Counters {
+        self.port.counters()
+    }
+
+    /// Whether the EEPROM is locked (1.0 Lock register).
+    pub fn locked(&self) -> bool {
+        self.port.locked()
+    }
+
+    /// One byte heard on the bus (not one this device sent).
+    pub fn push(&mut self, byte: u8) {
+        self.port.push(byte);
+    }
+
+    /// The line has been idle for at least one character time.
+    pub fn idle(&mut self) {
+        self.port.idle();
+    }
+
+    /// The next thing to do for the bytes heard so far; call until `None` after every
+    /// [`Device::push`] and [`Device::idle`].
+    pub fn poll(&mut self) -> Option<Output> {
+        self.port.poll(&mut self.backend)
+    }
+}
+
+impl Port {
+    /// The bus state of a device over `backend`, in the protocol its Protocol Type names.
+    pub fn new<B: Backend + ?Sized>(backend: &mut B) -> Self {
         let protocol =
             Protocol::from_number(backend.read(Field::BusProtocol)).unwrap_or(Protocol::V1);
-        Device {
-            core: Core {
-                backend,
+        Port {
+            st: State {
                 protocol,
                 locked: false,
                 registered: None,
@@ -184,32 +248,22 @@ impl<B: Backend> Device<B> {
 
     /// The protocol being spoken.
     pub fn protocol(&self) -> Protocol {
-        self.core.protocol
-    }
-
-    /// The backend.
-    pub fn backend(&self) -> &B {
-        &self.core.backend
-    }
-
-    /// The backend, mutably (the firmware's tick updates the actuator's state through it).
-    pub fn backend_mut(&mut self) -> &mut B {
-        &mut self.core.backend
+        self.st.protocol
     }
 
     /// What the device has heard.
     pub fn counters(&self) -> Counters {
-        self.core.counters
+        self.st.counters
     }
 
     /// Whether the EEPROM is locked (1.0 Lock register).
     pub fn locked(&self) -> bool {
-        self.core.locked
+        self.st.locked
     }
 
     /// One byte heard on the bus (not one this device sent).
     pub fn push(&mut self, byte: u8) {
-        match self.core.protocol {
+        match self.st.protocol {
             Protocol::V1 => self.rx1.push(byte),
             Protocol::V2 => self.rx2.push(byte),
         }
@@ -221,23 +275,36 @@ impl<B: Backend> Device<B> {
         self.rx2.idle();
     }
 
-    /// The next thing to do for the bytes heard so far; call until `None` after every
-    /// [`Device::push`] and [`Device::idle`].
-    pub fn poll(&mut self) -> Option<Output> {
+    /// Whether a packet has begun and not yet been decided (bytes heard since the last
+    /// packet, error or idle line that a decoder has not consumed).
+    pub fn receiving(&self) -> bool {
+        match self.st.protocol {
+            Protocol::V1 => self.rx1.pending(),
+            Protocol::V2 => self.rx2.pending(),
+        }
+    }
+
+    /// The next thing to do for the bytes heard so far, with `backend` behind the control
+    /// table; call until `None` after every [`Port::push`] and [`Port::idle`].
+    pub fn poll<B: Backend + ?Sized>(&mut self, backend: &mut B) -> Option<Output> {
         loop {
-            let out = match self.core.protocol {
+            let mut core = Core {
+                backend: &mut *backend,
+                st: &mut self.st,
+            };
+            let out = match core.st.protocol {
                 Protocol::V1 => {
                     let r = self.rx1.next()?;
-                    self.core.on_v1(r)
+                    core.on_v1(r)
                 }
                 Protocol::V2 => {
                     let r = self.rx2.next()?;
-                    self.core.on_v2(r)
+                    core.on_v2(r)
                 }
             };
             if let Some(out) = out {
                 if out.after == After::ApplyBusSettings {
-                    self.follow_protocol();
+                    self.follow_protocol(backend);
                 }
                 return Some(out);
             }
@@ -245,14 +312,14 @@ impl<B: Backend> Device<B> {
     }
 
     /// Switch to the protocol the backend now names, forgetting the other's partial state.
-    fn follow_protocol(&mut self) {
-        let Some(p) = Protocol::from_number(self.core.backend.read(Field::BusProtocol)) else {
+    fn follow_protocol<B: Backend + ?Sized>(&mut self, backend: &mut B) {
+        let Some(p) = Protocol::from_number(backend.read(Field::BusProtocol)) else {
             return;
         };
-        if p != self.core.protocol {
-            self.core.protocol = p;
-            self.core.registered = None;
-            self.core.chain = None;
+        if p != self.st.protocol {
+            self.st.protocol = p;
+            self.st.registered = None;
+            self.st.chain = None;
             self.rx1.reset();
             self.rx2.reset();
         }
@@ -264,7 +331,7 @@ fn le16(p: &[u8], i: usize) -> Option<u16> {
     Some(u16::from_le_bytes([*p.get(i)?, *p.get(i + 1)?]))
 }
 
-impl<B: Backend> Core<B> {
+impl<B: Backend + ?Sized> Core<'_, B> {
     fn id(&mut self) -> u8 {
         u8::try_from(self.backend.read(Field::Id)).unwrap_or(u8::MAX)
     }
@@ -285,27 +352,27 @@ impl<B: Backend> Core<B> {
     }
 
     fn eeprom_locked(&mut self) -> bool {
-        match self.protocol {
-            Protocol::V1 => self.locked,
+        match self.st.protocol {
+            Protocol::V1 => self.st.locked,
             Protocol::V2 => self.backend.read(Field::TorqueEnable) != 0,
         }
     }
 
     fn count(&mut self, r: &Result<After, Refusal>) {
         match r {
-            Ok(_) => self.counters.executed = self.counters.executed.wrapping_add(1),
-            Err(_) => self.counters.refused = self.counters.refused.wrapping_add(1),
+            Ok(_) => self.st.counters.executed = self.st.counters.executed.wrapping_add(1),
+            Err(_) => self.st.counters.refused = self.st.counters.refused.wrapping_add(1),
         }
     }
 
     fn on_decode_error(&mut self, e: DecodeError) -> Option<u8> {
         match e {
             DecodeError::Checksum { id, instruction } => {
-                self.counters.checksum_errors = self.counters.checksum_errors.wrapping_add(1);
+                self.st.counters.checksum_errors = self.st.counters.checksum_errors.wrapping_add(1);
                 (id == self.id() && self.answers(instruction)).then_some(instruction)
             }
             _ => {
-                self.counters.framing_errors = self.counters.framing_errors.wrapping_add(1);
+                self.st.counters.framing_errors = self.st.counters.framing_errors.wrapping_add(1);
                 None
             }
         }
@@ -326,7 +393,7 @@ impl<B: Backend> Core<B> {
                 });
             }
         };
-        self.counters.packets = self.counters.packets.wrapping_add(1);
+        self.st.counters.packets = self.st.counters.packets.wrapping_add(1);
         let me = self.id();
         let broadcast = p.id == v1::BROADCAST_ID;
         if p.id != me && !broadcast {
@@ -403,12 +470,12 @@ impl<B: Backend> Core<B> {
                 });
             }
         };
-        self.counters.packets = self.counters.packets.wrapping_add(1);
+        self.st.counters.packets = self.st.counters.packets.wrapping_add(1);
         if p.instruction == v2::STATUS {
             // Another device's status: the cue for a reply waiting on it.
-            let waiting = matches!(self.chain, Some((id, _)) if id == p.id);
+            let waiting = matches!(self.st.chain, Some((id, _)) if id == p.id);
             return if waiting {
-                let (_, mut reply) = self.chain.take()?;
+                let (_, mut reply) = self.st.chain.take()?;
                 reply.delay_us = self.delay_us();
                 Some(Output {
                     reply: Some(reply),
@@ -418,7 +485,7 @@ impl<B: Backend> Core<B> {
                 None
             };
         }
-        self.chain = None;
+        self.st.chain = None;
         let me = self.id();
         let broadcast = p.id == v2::BROADCAST_ID;
         if p.id != me && !broadcast {
@@ -479,7 +546,7 @@ impl<B: Backend> Core<B> {
         }
         if let Some(id) = after_id {
             // Held until the status of the device listed before this one is heard.
-            self.chain = reply.take().map(|r| (id, r));
+            self.st.chain = reply.take().map(|r| (id, r));
         }
         (reply.is_some() || after != After::Nothing).then_some(Output { reply, after })
     }
@@ -593,14 +660,14 @@ impl<B: Backend> Core<B> {
     /// The value of `field` as the bus sees it.
     fn value(&mut self, field: Field) -> i32 {
         match field {
-            Field::ModelNumber => match self.protocol {
+            Field::ModelNumber => match self.st.protocol {
                 Protocol::V1 => AX12A_MODEL,
                 Protocol::V2 => X_SERIES_MODEL,
             },
             Field::ModelInformation => 0,
             Field::FirmwareVersion => FIRMWARE_VERSION,
-            Field::Registered => i32::from(self.registered.is_some()),
-            Field::Lock => i32::from(self.locked),
+            Field::Registered => i32::from(self.st.registered.is_some()),
+            Field::Lock => i32::from(self.st.locked),
             Field::HardwareErrorStatus => i32::from(self.backend.hardware_errors()),
             f => self.backend.read(f),
         }
@@ -608,7 +675,7 @@ impl<B: Backend> Core<B> {
 
     /// READ: `length` bytes from `address`; reserved bytes between registers read as 0.
     fn read(&mut self, address: u16, length: u16, data: &mut Data) -> Result<(), Refusal> {
-        let max = match self.protocol {
+        let max = match self.st.protocol {
             Protocol::V1 => v1::MAX_PARAMS,
             Protocol::V2 => MAX_DATA,
         };
@@ -618,7 +685,7 @@ impl<B: Backend> Core<B> {
         if usize::from(length) > max {
             return Err(Refusal::Range);
         }
-        let table = self.protocol.table();
+        let table = self.st.protocol.table();
         let mut cached: Option<(u16, i32)> = None;
         for i in 0..length {
             let a = address.checked_add(i).ok_or(Refusal::Access)?;
@@ -651,7 +718,7 @@ impl<B: Backend> Core<B> {
         if bytes.is_empty() {
             return Err(Refusal::Length);
         }
-        let table = self.protocol.table();
+        let table = self.st.protocol.table();
         let mut items: Vec<(Register, i32), MAX_ITEMS> = Vec::new();
         let mut i = 0;
         while i < bytes.len() {
@@ -686,7 +753,7 @@ impl<B: Backend> Core<B> {
         if apply {
             for &(r, v) in &items {
                 match r.field {
-                    Field::Lock => self.locked = v != 0,
+                    Field::Lock => self.st.locked = v != 0,
                     f => self.backend.write(f, v),
                 }
             }
@@ -731,7 +798,7 @@ impl<B: Backend> Core<B> {
         if v < r.min || v > r.max {
             return Err(Refusal::Range);
         }
-        if r.field == Field::Lock && self.locked && v == 0 {
+        if r.field == Field::Lock && self.st.locked && v == 0 {
             return Err(Refusal::Access);
         }
         match r.field {
@@ -743,12 +810,12 @@ impl<B: Backend> Core<B> {
     fn reg_write(&mut self, address: u16, bytes: &[u8]) -> Result<After, Refusal> {
         self.write(address, bytes, false)?;
         let data = Vec::from_slice(bytes).map_err(|_| Refusal::Length)?;
-        self.registered = Some(Pending { address, data });
+        self.st.registered = Some(Pending { address, data });
         Ok(After::Nothing)
     }
 
     fn action(&mut self) -> Result<After, Refusal> {
-        let p = self.registered.take().ok_or(Refusal::Instruction)?;
+        let p = self.st.registered.take().ok_or(Refusal::Instruction)?;
         self.write(p.address, &p.data, true)
     }
 
@@ -756,7 +823,7 @@ impl<B: Backend> Core<B> {
         if self.eeprom_locked() {
             return Err(Refusal::Access);
         }
-        self.registered = None;
+        self.st.registered = None;
         self.backend.factory_reset(keep);
         Ok(After::ApplyBusSettings)
     }

@@ -16,7 +16,8 @@
 //!   the servo; [`MemoryBackend`] is the in-memory one). [`Device::push`] each byte heard,
 //!   [`Device::idle`] on an idle line, then [`Device::poll`] gives an [`Output`]: the
 //!   status packet to send after `delay_us`, and whether to apply new bus settings or
-//!   reboot once it is sent.
+//!   reboot once it is sent. [`Port`] is the same device without a backend of its own,
+//!   for a backend that only lives for one call (the firmware's borrows the actuator).
 //!
 //! # What the device does
 //!
@@ -106,7 +107,7 @@ pub mod table;
 pub mod v1;
 pub mod v2;
 
-pub use device::{After, Backend, Counters, Device, Keep, Output, Reply};
+pub use device::{After, Backend, Counters, Device, Keep, Output, Port, Reply};
 pub use error::{DecodeError, EncodeError, Refusal};
 pub use memory::MemoryBackend;
 pub use table::{Field, Protocol, Register, Table};

@@ -51,6 +51,13 @@ impl<F: Framing, const N: usize> Decoder<F, N> {
         self.rx.idle();
     }
 
+    /// Whether bytes are held that no packet or error has consumed yet (a packet may be
+    /// under way).
+    #[must_use]
+    pub fn pending(&self) -> bool {
+        !self.rx.avail().is_empty()
+    }
+
     /// Forget every byte received.
     pub fn reset(&mut self) {
         self.rx.clear();

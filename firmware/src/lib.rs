@@ -9,8 +9,10 @@
 //! - [`report`]: what the log task writes, and the verdict of an emulated run
 //!   ([`self_check`]); [`run_config`]: the run's options.
 //! - [`stack`]: stack painting and the high-water mark.
+//! - [`bus`]: the Dynamixel bus on the host-link UART.
 //! - [`fail_safe`]: the panic and HardFault handlers: the H-bridge off first, then the
 //!   report.
+//! - [`settings`]: the settings store at boot (the board's store: `board::open_settings`).
 //!
 //! The programs: `vsa-firmware` (the firmware, every board), and on the emulated boards
 //! `vsa-control-only` (the control loop and host link without the simulated actuator, for
@@ -35,10 +37,12 @@ compile_error!(
 );
 
 pub mod board;
+pub mod bus;
 pub mod fail_safe;
 pub mod report;
 pub mod run_config;
 pub mod self_check;
+pub mod settings;
 pub mod stack;
 pub mod tick;
 pub mod timing;

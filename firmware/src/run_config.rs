@@ -24,7 +24,23 @@ pub struct RunConfig {
     /// QEMU's `-icount` shift, if the runner passed it: one instruction takes 2^shift ns of
     /// virtual time, so SysTick counts convert to instructions.
     pub icount_shift: Option<u8>,
+    /// The host file holding the emulated flash of the settings store (`--flash PATH`,
+    /// read at boot and written after every store operation through semihosting); `None`:
+    /// no store in a scenario run, a store in RAM only while serving.
+    #[cfg(feature = "qemu")]
+    pub flash_file: Option<heapless::String<FLASH_PATH_MAX>>,
+    /// Cut the emulated flash's power after this many word writes since boot
+    /// (`--flash-cut-after N`, N ≥ 1): the firmware then exits at once, the file keeping
+    /// exactly the words written.
+    #[cfg(feature = "qemu")]
+    pub flash_cut_after: Option<u32>,
+    /// `--dxl-id N`: the board's ID on the Dynamixel bus (0–252; default 1).
+    pub dxl_id: u8,
 }
+
+/// Longest `--flash` path, bytes.
+#[cfg(feature = "qemu")]
+pub const FLASH_PATH_MAX: usize = store::FLASH_FILE_PATH_MAX;
 
 /// How the idle loop waits.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
@@ -50,12 +66,18 @@ impl RunConfig {
             #[cfg(feature = "qemu")]
             serve_load_mnm: 0,
             icount_shift: None,
+            #[cfg(feature = "qemu")]
+            flash_file: None,
+            #[cfg(feature = "qemu")]
+            flash_cut_after: None,
+            dxl_id: 1,
         }
     }
 
     /// Parses `--scenario NAME`, `--serve`, `--seconds N` (stop after N s even if the
     /// scenario has not ended), `--idle wfi|spin`, `--inject-panic-at-tick N`,
-    /// `--inject-hardfault-at-tick N`, `--icount-shift N` and `--load-mnm N`.
+    /// `--inject-hardfault-at-tick N`, `--icount-shift N`, `--load-mnm N`, `--flash PATH`
+    /// and `--flash-cut-after N`.
     pub fn parse<'a>(
         args: impl Iterator<Item = &'a str>,
         default_idle: IdleMode,
@@ -114,10 +136,45 @@ impl RunConfig {
                     }
                     config.icount_shift = Some(shift);
                 }
+                #[cfg(feature = "qemu")]
+                "--flash" => {
+                    let path = args.next().ok_or(RunConfigError::MissingValue)?;
+                    let mut owned = heapless::String::new();
+                    owned
+                        .push_str(path)
+                        .map_err(|_| RunConfigError::BadFlashPath)?;
+                    config.flash_file = Some(owned);
+                }
+                #[cfg(feature = "qemu")]
+                "--flash-cut-after" => {
+                    let value = args.next().ok_or(RunConfigError::MissingValue)?;
+                    let n: u32 = value.parse().map_err(|_| RunConfigError::BadCut)?;
+                    if n == 0 {
+                        return Err(RunConfigError::BadCut);
+                    }
+                    config.flash_cut_after = Some(n);
+                }
+                "--dxl-id" => {
+                    let value = args.next().ok_or(RunConfigError::MissingValue)?;
+                    config.dxl_id = value
+                        .parse()
+                        .ok()
+                        .filter(|&id: &u8| id <= 252)
+                        .ok_or(RunConfigError::BadDynamixelId)?;
+                }
                 _ => return Err(RunConfigError::UnknownArgument),
             }
         }
         Ok(config)
+    }
+
+    /// Whether the board serves the host (and so applies its stored configuration), rather
+    /// than running a scripted scenario with its own (the real board always serves).
+    pub fn serves(&self) -> bool {
+        #[cfg(feature = "qemu")]
+        return self.serve;
+        #[cfg(not(feature = "qemu"))]
+        return true;
     }
 
     /// Whether second `second` (1-based) is the last one of the run.
@@ -143,6 +200,12 @@ pub enum RunConfigError {
     BadShift,
     /// `--load-mnm` is not an integer within ±2000.
     BadLoad,
+    /// `--flash` is longer than [`FLASH_PATH_MAX`] bytes.
+    BadFlashPath,
+    /// `--flash-cut-after` is not a positive integer.
+    BadCut,
     /// An argument this firmware does not know.
     UnknownArgument,
+    /// `--dxl-id` is not 0..=252.
+    BadDynamixelId,
 }

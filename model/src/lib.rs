@@ -46,6 +46,8 @@
 
 pub mod backlash;
 pub mod beam;
+pub mod calibration;
+pub mod clutch_monitor;
 pub mod control;
 pub mod design;
 pub mod dynamics;

@@ -9,7 +9,10 @@
 //! → [`ServoState::Disabled`]. Nothing but an explicit clear leaves `Faulted`, and nothing
 //! but an explicit enable turns the motor on.
 
-use crate::control::{Command, Config, ControlError, Controller, Measurements, Output};
+use crate::control::{
+    Command, Config, ControlError, Controller, Impedance, ImpedanceCommand, ImpedanceError,
+    Measurements, Output,
+};
 use crate::supervisor::{
     Fault, FaultSet, Readings, Sensor, Supervisor, SupervisorConfig, SupervisorError,
 };
@@ -47,6 +50,8 @@ pub enum ServoError {
     Supervisor(SupervisorError),
     /// Not allowed while faulted (clear first).
     Faulted,
+    /// The impedance command was refused.
+    Impedance(ImpedanceError),
 }
 
 impl core::fmt::Display for ServoError {
@@ -55,6 +60,7 @@ impl core::fmt::Display for ServoError {
             ServoError::Control(e) => write!(f, "controller: {e}"),
             ServoError::Supervisor(e) => write!(f, "supervisor: {e}"),
             ServoError::Faulted => f.write_str("a fault is latched (clear it first)"),
+            ServoError::Impedance(e) => write!(f, "impedance: {e}"),
         }
     }
 }
@@ -133,6 +139,9 @@ pub struct Servo {
     tick: u32,
     /// Whether the motor was off during the last tick (the observer must know).
     was_off: bool,
+    /// The impedance command in force, if any: it sets the position loop's reference
+    /// every tick.
+    impedance: Option<Impedance>,
 }
 
 impl Servo {
@@ -155,6 +164,7 @@ impl Servo {
             state: ServoState::Disabled,
             tick: 0,
             was_off: true,
+            impedance: None,
         })
     }
 
@@ -199,6 +209,7 @@ impl Servo {
             ServoState::Enabled => Ok(()),
             ServoState::Disabled => {
                 self.controller.reset();
+                self.impedance = None;
                 self.state = ServoState::Enabled;
                 Ok(())
             }
@@ -207,6 +218,7 @@ impl Servo {
 
     /// Turns the motor off (from any state but `Faulted`, which stays).
     pub fn disable(&mut self) {
+        self.impedance = None;
         if self.state == ServoState::Enabled {
             self.state = ServoState::Disabled;
         }
@@ -232,7 +244,7 @@ impl Servo {
         self.supervisor.disarm_heartbeat();
     }
 
-    /// Gives the controller a new command.
+    /// Gives the controller a new command (it ends an impedance command).
     ///
     /// # Errors
     /// [`ServoError::Faulted`] while faulted; the controller's rejection.
@@ -240,7 +252,40 @@ impl Servo {
         if self.state == ServoState::Faulted {
             return Err(ServoError::Faulted);
         }
-        self.controller.command(cmd).map_err(ServoError::Control)
+        self.controller.command(cmd).map_err(ServoError::Control)?;
+        self.impedance = None;
+        Ok(())
+    }
+
+    /// Starts an impedance command (`crate::control::impedance`): from the next tick the
+    /// position loop's reference follows the virtual spring-damper, until a position
+    /// command, a disable, a fault or a new configuration (which holds the last reference).
+    ///
+    /// # Errors
+    /// [`ServoError::Faulted`] while faulted; [`ServoError::Impedance`] for a value out of
+    /// range, among them a virtual stiffness above the beams' at the clutch setting.
+    pub fn impedance(&mut self, cmd: &ImpedanceCommand) -> Result<(), ServoError> {
+        if self.state == ServoState::Faulted {
+            return Err(ServoError::Faulted);
+        }
+        let start = self.controller.trajectory().reference().position;
+        let c = &self.controller;
+        let imp = Impedance::new(cmd, c.schedule(), c.config().link_inertia)
+            .map_err(ServoError::Impedance)?;
+        self.controller
+            .command(imp.approach(start))
+            .map_err(ServoError::Control)?;
+        self.impedance = Some(imp);
+        Ok(())
+    }
+
+    /// The impedance command in force, if any.
+    #[must_use]
+    pub const fn impedance_command(&self) -> Option<&ImpedanceCommand> {
+        match &self.impedance {
+            Some(imp) => Some(imp.command()),
+            None => None,
+        }
     }
 
     /// Applies a new controller configuration (e.g. a clutch length) and re-derives the
@@ -258,6 +303,7 @@ impl Servo {
             .map_err(ServoError::Supervisor)?;
         self.controller = controller;
         self.supervisor = supervisor;
+        self.impedance = None;
         Ok(())
     }
 
@@ -270,6 +316,7 @@ impl Servo {
     /// [`ServoError::Faulted`].
     pub fn restart_prepared(&mut self, prepared: &Prepared) -> Result<(), ServoError> {
         self.disable();
+        self.impedance = None;
         self.controller = prepared.controller.clone();
         self.supervisor.install_thresholds(&prepared.supervisor);
         self.supervisor.forget_history();
@@ -282,6 +329,7 @@ impl Servo {
     /// controller restarts as on [`Servo::enable`]); a disabled or faulted one stays so,
     /// and latched faults stay latched. The heartbeat timeout keeps running.
     pub fn install_prepared(&mut self, prepared: &Prepared) {
+        self.impedance = None;
         self.controller = prepared.controller.clone();
         self.supervisor.install_thresholds(&prepared.supervisor);
         self.supervisor.forget_history();
@@ -297,6 +345,7 @@ impl Servo {
     }
 
     fn fault(&mut self) {
+        self.impedance = None;
         self.state = ServoState::Faulted;
         self.was_off = true;
     }
@@ -311,7 +360,19 @@ impl Servo {
             current_adc: input.current_adc,
             applied_duty: if self.was_off { Some(0) } else { None },
         };
+        if let Some(imp) = self.impedance.as_ref().filter(|i| !i.approaching()) {
+            // Within ±MAX_ANGLE_RAD by construction: never refused.
+            let _ = self.controller.command(Command::Step {
+                target: imp.reference(),
+            });
+        }
         let control = self.controller.step(&m);
+        if let Some(imp) = &mut self.impedance {
+            imp.advance(
+                control.torque_estimate,
+                self.controller.trajectory().is_moving(),
+            );
+        }
         let readings = Readings {
             link_encoder: input.link_encoder,
             gear_pot: input.gear_pot,
@@ -406,6 +467,47 @@ mod tests {
             (FaultCode::DeadlineMissed, 200_000, 1)
         );
         assert_eq!(s.tick(&QUIET).bridge, BridgeDemand::Off);
+    }
+
+    #[test]
+    fn an_impedance_command_lasts_until_a_position_command_a_disable_or_a_fault() {
+        use crate::control::{ImpedanceCommand, ImpedanceError};
+        use crate::{Angle, Stiffness, Torque};
+        let imp = |k: i64| ImpedanceCommand {
+            target: Angle::from_micro(300_000).unwrap(),
+            stiffness: Stiffness::from_int(k),
+            damping: fixed::types::I32F32::from_num(0.2),
+            torque: Torque::ZERO,
+        };
+        let mut s = servo(); // L = 3 mm: k = 265.5 N·m/rad
+        s.enable().unwrap();
+        s.impedance(&imp(20)).unwrap();
+        assert_eq!(s.impedance_command(), Some(&imp(20)));
+        // The approach: a move to the target.
+        assert!(s.controller().trajectory().is_moving());
+        assert_eq!(
+            s.impedance(&imp(266)),
+            Err(ServoError::Impedance(
+                ImpedanceError::StiffnessAbovePhysical
+            ))
+        );
+        assert_eq!(
+            s.impedance_command(),
+            Some(&imp(20)),
+            "a refusal changes nothing"
+        );
+        s.command(Command::Hold).unwrap();
+        assert_eq!(s.impedance_command(), None);
+        s.impedance(&imp(20)).unwrap();
+        s.disable();
+        assert_eq!(s.impedance_command(), None);
+        s.enable().unwrap();
+        s.impedance(&imp(20)).unwrap();
+        let mut bad = QUIET;
+        bad.current_adc = 4095;
+        assert!(s.tick(&bad).new_fault.is_some());
+        assert_eq!(s.impedance_command(), None);
+        assert_eq!(s.impedance(&imp(20)), Err(ServoError::Faulted));
     }
 
     #[test]

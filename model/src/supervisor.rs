@@ -15,6 +15,11 @@
 //! | 7 | [`FaultCode::PositionLimit`] | measured link angle outside the position window | µrad |
 //! | 8 | [`FaultCode::DeadlineMissed`] | the control period overran (reported by the firmware) | sysclk counts of the tick |
 //! | 9 | [`FaultCode::CommandTimeout`] | heartbeats armed and none for `command_timeout_ms` | ms since the last |
+//! | 10 | [`FaultCode::ClutchMismatch`] | the clutch monitor's compliance estimate shows the beams softer than configured beyond its tolerance ([`crate::clutch_monitor`]) | estimated/configured compliance, ‰ |
+//!
+//! With a `clutch_tolerance` above 0 the torque check compares against the clutch
+//! monitor's capacity (the weakest the tolerance allows until the stiffness is confirmed)
+//! instead of τ_cap(L).
 //!
 //! Deflection envelope: φ_b + θ_cap(L) + one pot count + half an encoder count (the two
 //! quantisations) + the pot centre's calibration tolerance (`pot_tolerance_counts`, what
@@ -30,6 +35,7 @@
 //! Every threshold is converted to the per-tick formats when the supervisor is built
 //! ([`Supervisor::new`]), never per tick; the per-tick work is compares and one multiply.
 
+use crate::clutch_monitor::{ClutchLimits, ClutchMonitor};
 use crate::control::{Output, Schedule};
 use crate::sensors::{
     encoder_delta, ADC_COUNTS, ADC_COUNTS_PER_A, ADC_MID, ENCODER_COUNTS,
@@ -64,11 +70,13 @@ pub enum FaultCode {
     DeadlineMissed = 8,
     /// No heartbeat from the host for the timeout.
     CommandTimeout = 9,
+    /// The beams are softer than configured: the clutch is longer than the host said.
+    ClutchMismatch = 10,
 }
 
 impl FaultCode {
     /// Every code, in check order.
-    pub const ALL: [FaultCode; 9] = [
+    pub const ALL: [FaultCode; 10] = [
         FaultCode::SensorRead,
         FaultCode::AdcOutOfRange,
         FaultCode::OverCurrent,
@@ -78,6 +86,7 @@ impl FaultCode {
         FaultCode::PositionLimit,
         FaultCode::DeadlineMissed,
         FaultCode::CommandTimeout,
+        FaultCode::ClutchMismatch,
     ];
 
     /// Short name, as logged (`over-current`, …).
@@ -93,6 +102,7 @@ impl FaultCode {
             FaultCode::PositionLimit => "position-limit",
             FaultCode::DeadlineMissed => "deadline-missed",
             FaultCode::CommandTimeout => "command-timeout",
+            FaultCode::ClutchMismatch => "clutch-mismatch",
         }
     }
 
@@ -178,6 +188,11 @@ pub struct SupervisorConfig {
     /// Consecutive ticks the torque estimate must exceed τ_cap before `beam-overload`
     /// latches, 1..=10. Default 2 (a one-tick spike of the estimate is not a load).
     pub overload_ticks: u16,
+    /// How much longer than configured the clutch may actually be, mm, in [0, 5]: until
+    /// the clutch monitor confirms the stiffness the torque check uses the capacity at
+    /// that longer length. 0 turns the monitor's capacity off (τ_cap(L) as configured).
+    /// Default 0.
+    pub clutch_tolerance: crate::units::Length,
 }
 
 impl SupervisorConfig {
@@ -194,6 +209,7 @@ impl SupervisorConfig {
         command_timeout_ms: 100,
         pot_tolerance_counts: 3,
         overload_ticks: 2,
+        clutch_tolerance: crate::units::Length::from_int(0),
     };
 }
 
@@ -223,6 +239,8 @@ pub enum SupervisorError {
     PotTolerance,
     /// `overload_ticks` not in 1..=10.
     OverloadTicks,
+    /// `clutch_tolerance` not in [0, 5] mm.
+    ClutchTolerance,
 }
 
 impl core::fmt::Display for SupervisorError {
@@ -236,6 +254,7 @@ impl core::fmt::Display for SupervisorError {
             SupervisorError::Timeout => "command timeout must be at least 1 ms",
             SupervisorError::PotTolerance => "pot tolerance above 100 counts",
             SupervisorError::OverloadTicks => "overload ticks outside 1..=10",
+            SupervisorError::ClutchTolerance => "clutch tolerance outside [0, 5] mm",
         })
     }
 }
@@ -293,6 +312,10 @@ pub struct Supervisor {
     /// value then: what a clear would latch again at the next tick. Events (a sensor jump,
     /// the command timeout) are not conditions.
     condition: Option<Fault>,
+    /// The clutch monitor and its constants (when `clutch_tolerance` > 0; kept out of
+    /// the thresholds, which the check copies each tick).
+    clutch: ClutchMonitor,
+    clutch_lim: Option<ClutchLimits>,
 }
 
 impl Supervisor {
@@ -304,6 +327,7 @@ impl Supervisor {
     pub fn new(cfg: &SupervisorConfig, sched: &Schedule) -> Result<Supervisor, SupervisorError> {
         let th = Self::thresholds(cfg, sched)?;
         Ok(Supervisor {
+            clutch_lim: Self::clutch_limits(cfg, sched),
             cfg: *cfg,
             th,
             latched: FaultSet(0),
@@ -314,6 +338,7 @@ impl Supervisor {
             over_ticks: 0,
             last_heartbeat: None,
             condition: None,
+            clutch: ClutchMonitor::new(),
         })
     }
 
@@ -329,7 +354,15 @@ impl Supervisor {
     ) -> Result<(), SupervisorError> {
         self.th = Self::thresholds(cfg, sched)?;
         self.cfg = *cfg;
+        self.clutch = ClutchMonitor::new();
+        self.clutch_lim = Self::clutch_limits(cfg, sched);
         Ok(())
+    }
+
+    /// The clutch monitor's constants (`None` with a zero tolerance). `cfg` is valid.
+    fn clutch_limits(cfg: &SupervisorConfig, sched: &Schedule) -> Option<ClutchLimits> {
+        let tol = cfg.clutch_tolerance.to_bits();
+        (tol > 0).then(|| ClutchLimits::new(sched, tol))
     }
 
     fn thresholds(cfg: &SupervisorConfig, sched: &Schedule) -> Result<Thresholds, SupervisorError> {
@@ -361,6 +394,10 @@ impl Supervisor {
         }
         if !(1..=10).contains(&cfg.overload_ticks) {
             return Err(SupervisorError::OverloadTicks);
+        }
+        let tol = cfg.clutch_tolerance.to_bits();
+        if !(0..=5 * Q32_ONE).contains(&tol) {
+            return Err(SupervisorError::ClutchTolerance);
         }
         // Counts per tick at max speed: speed[rad/s]·1e-3 s / count, rounded up, + 1.
         let per_tick = speed / 1000;
@@ -395,6 +432,8 @@ impl Supervisor {
     pub fn install_thresholds(&mut self, other: &Supervisor) {
         self.cfg = other.cfg;
         self.th = other.th;
+        self.clutch = ClutchMonitor::new();
+        self.clutch_lim = other.clutch_lim;
     }
 
     /// The configuration in use.
@@ -403,10 +442,25 @@ impl Supervisor {
         &self.cfg
     }
 
-    /// τ_cap(L) the overload check uses.
+    /// τ_cap(L) at the configured clutch length.
     #[must_use]
     pub fn torque_capacity(&self) -> Torque {
         Torque::from_bits(self.th.torque_cap)
+    }
+
+    /// The capacity the overload check uses now: τ_cap(L), or the clutch monitor's.
+    #[must_use]
+    pub fn checked_capacity(&self) -> Torque {
+        Torque::from_bits(match &self.clutch_lim {
+            Some(lim) => self.clutch.capacity(lim),
+            None => self.th.torque_cap,
+        })
+    }
+
+    /// The clutch monitor's conclusion (`None` while `clutch_tolerance` is 0).
+    #[must_use]
+    pub fn clutch_state(&self) -> Option<crate::clutch_monitor::ClutchState> {
+        self.clutch_lim.map(|_| self.clutch.state())
     }
 
     /// Deflection envelope (φ_b + θ_cap + quantisation) the overload and stuck checks use.
@@ -557,6 +611,16 @@ impl Supervisor {
             self.prev_pot = Some(pot);
             let theta_g = i64::from(i32::from(pot) - th.pot_center).saturating_mul(POT_COUNT_Q32);
             let phi = theta_g.saturating_sub(out.link_angle.to_bits());
+            let mismatch = match &self.clutch_lim {
+                Some(lim) if self.clutch.update(phi, out, lim) => {
+                    let r = self.clutch.ratio_q16(lim).unwrap_or(0);
+                    Some(((r * 1000) >> 16).clamp(0, i64::from(i32::MAX)) as i32)
+                }
+                _ => None,
+            };
+            if let Some(permille) = mismatch {
+                note(self, FaultCode::ClutchMismatch, permille);
+            }
             if phi.saturating_abs() > th.envelope {
                 let tau = out.torque_estimate.to_bits().saturating_abs();
                 let micro = to_micro(phi);
@@ -571,7 +635,11 @@ impl Supervisor {
         }
 
         let tau = out.torque_estimate.to_bits();
-        if tau.saturating_abs() > th.torque_cap {
+        let cap = match &self.clutch_lim {
+            Some(lim) => self.clutch.capacity(lim),
+            None => th.torque_cap,
+        };
+        if tau.saturating_abs() > cap {
             self.over_ticks = self.over_ticks.saturating_add(1);
             if self.over_ticks >= th.overload_ticks {
                 note(self, FaultCode::BeamOverload, to_micro(tau));

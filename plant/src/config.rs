@@ -35,6 +35,10 @@ pub struct MotorConfig {
     /// Coulomb (dry) friction of the gear train at the output, N·m; also the breakaway
     /// (stiction) level. Default 0.01 N·m (0.7 % of the stall torque).
     pub coulomb_nm: f32,
+    /// Wiring of the motor leads to the bridge: +1, or −1 when swapped (a positive duty
+    /// then turns the gear negative; the bridge's current sense reads the bridge current,
+    /// −1 × the motor's). Default +1.
+    pub polarity: f32,
 }
 
 impl Default for MotorConfig {
@@ -47,6 +51,7 @@ impl Default for MotorConfig {
             inertia_kg_m2: 3.2e-3,
             viscous_nm_s_per_rad: 1.0e-3,
             coulomb_nm: 0.01,
+            polarity: 1.0,
         }
     }
 }
@@ -192,6 +197,22 @@ pub struct SensorConfig {
     pub current_noise_counts: f32,
     /// Seed of the xorshift32 noise generator (0 is replaced by a fixed non-zero value).
     pub noise_seed: u32,
+    /// Link encoder counts per turn, 16..=16384 (an AS5047P's incremental output gives
+    /// 4 000 at its factory 1 000 pulses per revolution). Default 4096.
+    pub encoder_counts_per_turn: u16,
+    /// Link encoder counting direction: +1, or −1 when it counts down as the link turns
+    /// positive (magnet or chip mounted the other way, A/B swapped). Default +1.
+    pub encoder_direction: f32,
+    /// Pot direction: +1, or −1 when its end terminals are wired the other way. Default +1.
+    pub pot_direction: f32,
+    /// Pot gain error (reading = gain · the nominal 1024/300° slope). Default 1.
+    pub pot_gain: f32,
+    /// Amplitude of the pot's integral non-linearity, counts: A·sin(2π·c/1024) is added
+    /// at ideal count c (a smooth bow over the track). Default 0.
+    pub pot_nonlinearity_counts: f32,
+    /// Standard deviation of the pot noise, counts (same generator as the current noise,
+    /// drawn after it; no draw when 0). Default 0.
+    pub pot_noise_counts: f32,
 }
 
 impl Default for SensorConfig {
@@ -203,6 +224,12 @@ impl Default for SensorConfig {
             current_gain: 1.0,
             current_noise_counts: 0.0,
             noise_seed: 0x2545_F491,
+            encoder_counts_per_turn: model::sensors::ENCODER_COUNTS,
+            encoder_direction: 1.0,
+            pot_direction: 1.0,
+            pot_gain: 1.0,
+            pot_nonlinearity_counts: 0.0,
+            pot_noise_counts: 0.0,
         }
     }
 }
@@ -228,6 +255,13 @@ pub struct PlantConfig {
     pub gear_locked: bool,
     /// Hold the link fixed (test fixture, e.g. a stiffness identification load test).
     pub link_locked: bool,
+    /// Clutch length the coupling was derived for, m (0: not known). An override of it
+    /// (`clutch`) makes [`crate::harness::plant_for`] derive the coupling again at the
+    /// new length: the clutch as it actually is, whatever the controller was told.
+    pub clutch_length_m: f32,
+    /// Link (and gear) angle at power-up, rad. The link encoder is incremental: it reads
+    /// `encoder_zero_counts` at power-up wherever the link is. Default 0.
+    pub power_up_angle_rad: f32,
 }
 
 /// Default number of substeps per tick (50 µs at 1 kHz).

@@ -14,7 +14,7 @@
 //! the integrator), give the command, run `run_ticks` more. Metrics use the plant's *true*
 //! link angle and beam stress.
 
-use model::control::{Command, Config, ControlError, Flags, Schedule};
+use model::control::{Command, Config, ControlError, Flags, ImpedanceCommand, Schedule};
 use model::sensors::encoder_delta;
 use model::servo::{BridgeDemand, Servo, ServoError, TickInput};
 use model::supervisor::{Fault, FaultSet, SupervisorConfig};
@@ -75,6 +75,12 @@ pub struct Scenario {
     /// The supervisor's settings (the servo runs the controller under the supervisor; a
     /// latched fault turns the bridge off).
     pub supervision: SupervisorConfig,
+    /// An impedance command given instead of `command` after the hold (its target is the
+    /// metrics' target).
+    pub impedance: Option<ImpedanceCommand>,
+    /// Gravity arm m·g·l of the link, N·m (0: none): the link hangs straight down at
+    /// 0 rad, gravity pulls it back with −m·g·l·sin θ ([`LoadConfig::gravity_mgd_nm`]).
+    pub gravity_nm: f32,
 }
 
 impl Scenario {
@@ -97,6 +103,8 @@ impl Scenario {
             preload: true,
             plant: Overrides::NONE,
             supervision: SupervisorConfig::DEFAULT,
+            impedance: None,
+            gravity_nm: 0.0,
         }
     }
 }
@@ -234,8 +242,28 @@ pub fn plant_config(
             constant_nm: load_nm,
             ..LoadConfig::default()
         },
+        clutch_length_m: (fx32(sched.setting().length().to_bits()) * 1e-3) as f32,
         ..PlantConfig::default()
     })
+}
+
+/// The coupling of the beams at an actual clutch length `length_m` (m), whatever the
+/// controller was told: the clutch slid by hand to another length.
+///
+/// # Errors
+/// The length is outside the design's range, or its stress does not fit.
+pub fn coupling_at(
+    design: &Design,
+    config: &Config,
+    length_m: f32,
+) -> Result<CouplingConfig, ControlError> {
+    let mut actual = *config;
+    let micro = libm::round(f64::from(length_m) * 1e9) as i64; // µm·1000 = mm·1e6
+    actual.clutch = model::control::ClutchSetting::Length(
+        model::Length::from_micro(micro)
+            .map_err(|_| ControlError::Beam(model::Error::ClutchLengthOutOfRange))?,
+    );
+    coupling_config(design, &model::control::Schedule::new(design, &actual)?)
 }
 
 /// The beams' coupling at the clutch setting of `sched` (a controller's schedule for
@@ -426,10 +454,14 @@ impl Recorder {
 /// # Errors
 /// As [`plant_config`].
 pub fn plant_for(sc: &Scenario) -> Result<Plant, ControlError> {
-    let mut pc = sc
-        .plant
-        .apply(&plant_config(&sc.design, &sc.config, sc.load_nm)?);
+    let nominal = plant_config(&sc.design, &sc.config, sc.load_nm)?;
+    let mut pc = sc.plant.apply(&nominal);
+    if pc.clutch_length_m != nominal.clutch_length_m {
+        pc.coupling = coupling_at(&sc.design, &sc.config, pc.clutch_length_m)?;
+    }
     pc.substeps = sc.substeps;
+    pc.load.gravity_mgd_nm = sc.gravity_nm;
+    pc.load.gravity_down_rad = 0.0;
     if let Some(d) = sc.disturbance {
         let at = i64::from(sc.settle_ticks) + i64::from(d.after_command_ticks);
         let mut profile = TorqueProfile::default();
@@ -446,7 +478,8 @@ pub fn plant_for(sc: &Scenario) -> Result<Plant, ControlError> {
         let phi = -(pc.coupling.free_play_rad
             + sc.load_nm.abs() / pc.coupling.stiffness_nm_per_rad)
             * sc.load_nm.signum();
-        plant.set_state(f64::from(phi), 0.0, 0.0, 0.0);
+        let a = f64::from(pc.power_up_angle_rad);
+        plant.set_state(a + f64::from(phi), 0.0, a, 0.0);
     }
     Ok(plant)
 }
@@ -509,7 +542,11 @@ where
         if let Some(command) = command {
             // A fault latched earlier refuses the command; the run goes on (its metrics
             // show the fault).
-            match servo.command(command) {
+            let given = match sc.impedance {
+                Some(imp) if tick == sc.settle_ticks => servo.impedance(&imp),
+                _ => servo.command(command),
+            };
+            match given {
                 Ok(()) | Err(ServoError::Faulted) => {}
                 Err(e) => return Err(e),
             }
@@ -521,10 +558,10 @@ where
             read_error: None,
         });
         if tick == sc.settle_ticks {
-            rec.on_command(
-                plant.state().link_angle_rad,
-                fx32(servo.controller().trajectory().target().to_bits()),
-            );
+            let target = servo
+                .impedance_command()
+                .map_or(servo.controller().trajectory().target(), |c| c.target);
+            rec.on_command(plant.state().link_angle_rad, fx32(target.to_bits()));
         }
         let (cmd, duty) = match out.bridge {
             BridgeDemand::Drive(d) => (BridgeCommand::Drive(d), d),

@@ -23,6 +23,21 @@
 //! | `pot-offset` | gear pot centre error | counts | 0 |
 //! | `link-inertia` | link inertia | `kgm2` | the configured one |
 //! | `link-friction` | link bearing Coulomb friction | `Nm`, `mNm` | 0 |
+//! | `motor-polarity` | motor leads on the bridge (−1: swapped) | ±1 | +1 |
+//! | `encoder-direction` | link encoder counting direction | ±1 | +1 |
+//! | `encoder-zero` | link encoder reading at power-up | counts | 0 |
+//! | `encoder-counts` | link encoder counts per turn | counts | 4096 |
+//! | `pot-direction` | pot end terminals (−1: swapped) | ±1 | +1 |
+//! | `pot-gain` | pot slope (reading = gain·nominal slope) | factor | 1 |
+//! | `pot-nonlinearity` | amplitude of the pot's bow A·sin(2π·c/1024) | counts | 0 |
+//! | `pot-noise` | pot noise, standard deviation | counts | 0 |
+//! | `current-noise` | current-sense noise, standard deviation | counts | 0 |
+//! | `noise-seed` | seed of the sensors' noise | a bare number | 0x2545F491 |
+//! | `clutch` | the clutch's actual length (the coupling is derived again) | `mm` | the configured one |
+//! | `power-up-angle` | link angle at power-up (the encoder starts at `encoder-zero` there) | `rad`, `deg` | 0 |
+//!
+//! Signs (`±1`) take `1` or `-1` only; counts, the seed and the power-up angle take no
+//! factor.
 
 use core::fmt;
 
@@ -53,6 +68,30 @@ pub enum Param {
     LinkInertia,
     /// Link bearing Coulomb friction, N·m.
     LinkFriction,
+    /// Motor lead polarity, ±1.
+    MotorPolarity,
+    /// Link encoder direction, ±1.
+    EncoderDirection,
+    /// Link encoder reading at power-up, counts.
+    EncoderZero,
+    /// Link encoder counts per turn.
+    EncoderCounts,
+    /// Pot direction, ±1.
+    PotDirection,
+    /// Pot gain, factor.
+    PotGain,
+    /// Pot non-linearity amplitude, counts.
+    PotNonlinearity,
+    /// Pot noise, counts (1 σ).
+    PotNoise,
+    /// Current-sense noise, counts (1 σ).
+    CurrentNoise,
+    /// Seed of the sensor noise.
+    NoiseSeed,
+    /// Actual clutch length, m.
+    Clutch,
+    /// Link angle at power-up, rad.
+    PowerUpAngle,
 }
 
 /// Name, units (spelling, factor to SI) and whether it is an offset (no `xF`), per
@@ -64,6 +103,16 @@ struct Spec {
     offset: bool,
 }
 
+/// A wiring sign: `1` or `-1`, no factor.
+const fn sign(param: Param, name: &'static str) -> Spec {
+    Spec {
+        param,
+        name,
+        units: SIGN,
+        offset: true,
+    }
+}
+
 const OHM: &[(&str, f64)] = &[("ohm", 1.0), ("Ω", 1.0), ("mohm", 1e-3)];
 const NM_PER_A: &[(&str, f64)] = &[("Nm/A", 1.0), ("N·m/A", 1.0)];
 const VS_PER_RAD: &[(&str, f64)] = &[("Vs/rad", 1.0), ("V·s/rad", 1.0)];
@@ -72,8 +121,15 @@ const NM: &[(&str, f64)] = &[("Nm", 1.0), ("N·m", 1.0), ("mNm", 1e-3)];
 const VOLT: &[(&str, f64)] = &[("V", 1.0), ("mV", 1e-3)];
 const COUNTS: &[(&str, f64)] = &[("", 1.0), ("counts", 1.0), ("count", 1.0)];
 const FACTOR: &[(&str, f64)] = &[("", 1.0)];
+const SIGN: &[(&str, f64)] = &[("", 1.0)];
+const MM: &[(&str, f64)] = &[("mm", 1e-3), ("m", 1.0)];
+const RAD: &[(&str, f64)] = &[
+    ("rad", 1.0),
+    ("deg", core::f64::consts::PI / 180.0),
+    ("°", core::f64::consts::PI / 180.0),
+];
 
-const SPECS: [Spec; 11] = [
+const SPECS: [Spec; 23] = [
     Spec {
         param: Param::Resistance,
         name: "resistance",
@@ -140,11 +196,68 @@ const SPECS: [Spec; 11] = [
         units: NM,
         offset: false,
     },
+    sign(Param::MotorPolarity, "motor-polarity"),
+    sign(Param::EncoderDirection, "encoder-direction"),
+    Spec {
+        param: Param::EncoderZero,
+        name: "encoder-zero",
+        units: COUNTS,
+        offset: true,
+    },
+    Spec {
+        param: Param::EncoderCounts,
+        name: "encoder-counts",
+        units: COUNTS,
+        offset: true,
+    },
+    sign(Param::PotDirection, "pot-direction"),
+    Spec {
+        param: Param::PotGain,
+        name: "pot-gain",
+        units: FACTOR,
+        offset: false,
+    },
+    Spec {
+        param: Param::PotNonlinearity,
+        name: "pot-nonlinearity",
+        units: COUNTS,
+        offset: true,
+    },
+    Spec {
+        param: Param::PotNoise,
+        name: "pot-noise",
+        units: COUNTS,
+        offset: true,
+    },
+    Spec {
+        param: Param::CurrentNoise,
+        name: "current-noise",
+        units: COUNTS,
+        offset: true,
+    },
+    Spec {
+        param: Param::NoiseSeed,
+        name: "noise-seed",
+        units: FACTOR,
+        offset: true,
+    },
+    Spec {
+        param: Param::Clutch,
+        name: "clutch",
+        units: MM,
+        offset: false,
+    },
+    Spec {
+        param: Param::PowerUpAngle,
+        name: "power-up-angle",
+        units: RAD,
+        offset: true,
+    },
 ];
 
 impl Param {
     /// Every parameter, in the table's order.
-    pub const ALL: [Param; 11] = [
+    pub const ALL: [Param; 23] = [
         Param::Resistance,
         Param::TorqueConstant,
         Param::BackEmf,
@@ -156,6 +269,18 @@ impl Param {
         Param::PotOffset,
         Param::LinkInertia,
         Param::LinkFriction,
+        Param::MotorPolarity,
+        Param::EncoderDirection,
+        Param::EncoderZero,
+        Param::EncoderCounts,
+        Param::PotDirection,
+        Param::PotGain,
+        Param::PotNonlinearity,
+        Param::PotNoise,
+        Param::CurrentNoise,
+        Param::NoiseSeed,
+        Param::Clutch,
+        Param::PowerUpAngle,
     ];
 
     fn spec(self) -> &'static Spec {
@@ -195,6 +320,19 @@ impl Param {
             Param::PotOffset => pc.sensors.pot_center_counts - NOMINAL_POT_CENTER,
             Param::LinkInertia => pc.link.inertia_kg_m2,
             Param::LinkFriction => pc.link.coulomb_nm,
+            Param::MotorPolarity => pc.motor.polarity,
+            Param::EncoderDirection => pc.sensors.encoder_direction,
+            Param::EncoderZero => f32::from(pc.sensors.encoder_zero_counts),
+            Param::EncoderCounts => f32::from(pc.sensors.encoder_counts_per_turn),
+            Param::PotDirection => pc.sensors.pot_direction,
+            Param::PotGain => pc.sensors.pot_gain,
+            Param::PotNonlinearity => pc.sensors.pot_nonlinearity_counts,
+            Param::PotNoise => pc.sensors.pot_noise_counts,
+            Param::CurrentNoise => pc.sensors.current_noise_counts,
+            // The seed as a number (exact below 2²⁴; the seeds the tools draw are).
+            Param::NoiseSeed => pc.sensors.noise_seed as f32,
+            Param::Clutch => pc.clutch_length_m,
+            Param::PowerUpAngle => pc.power_up_angle_rad,
         }
     }
 
@@ -211,7 +349,36 @@ impl Param {
             Param::PotOffset => pc.sensors.pot_center_counts = NOMINAL_POT_CENTER + v,
             Param::LinkInertia => pc.link.inertia_kg_m2 = v,
             Param::LinkFriction => pc.link.coulomb_nm = v,
+            Param::MotorPolarity => pc.motor.polarity = v,
+            Param::EncoderDirection => pc.sensors.encoder_direction = v,
+            // Ranges checked at parsing: the casts are exact.
+            Param::EncoderZero => pc.sensors.encoder_zero_counts = v as u16,
+            Param::EncoderCounts => pc.sensors.encoder_counts_per_turn = v as u16,
+            Param::PotDirection => pc.sensors.pot_direction = v,
+            Param::PotGain => pc.sensors.pot_gain = v,
+            Param::PotNonlinearity => pc.sensors.pot_nonlinearity_counts = v,
+            Param::PotNoise => pc.sensors.pot_noise_counts = v,
+            Param::CurrentNoise => pc.sensors.current_noise_counts = v,
+            Param::NoiseSeed => pc.sensors.noise_seed = v as u32,
+            Param::Clutch => pc.clutch_length_m = v,
+            Param::PowerUpAngle => pc.power_up_angle_rad = v,
         }
+    }
+
+    /// A wiring sign (takes `1` or `-1` only).
+    fn is_sign(self) -> bool {
+        matches!(
+            self,
+            Param::MotorPolarity | Param::EncoderDirection | Param::PotDirection
+        )
+    }
+
+    /// A count that must be a whole number.
+    fn is_integer(self) -> bool {
+        matches!(
+            self,
+            Param::EncoderZero | Param::EncoderCounts | Param::NoiseSeed
+        )
     }
 
     /// The smallest factor `xF` (0 for the frictions, which may vanish).
@@ -233,8 +400,16 @@ impl Param {
             Param::GearFriction | Param::LinkFriction => (0.0, 10.0),
             Param::Supply => (1.0, 100.0),
             Param::CurrentOffset => (-1000.0, 1000.0),
-            Param::CurrentGain => (0.1, 10.0),
+            Param::CurrentGain | Param::PotGain => (0.1, 10.0),
             Param::PotOffset => (-250.0, 250.0),
+            Param::MotorPolarity | Param::EncoderDirection | Param::PotDirection => (-1.0, 1.0),
+            Param::EncoderZero => (0.0, 16383.0),
+            Param::EncoderCounts => (16.0, 16384.0),
+            Param::PotNonlinearity => (-50.0, 50.0),
+            Param::PotNoise | Param::CurrentNoise => (0.0, 100.0),
+            Param::NoiseSeed => (0.0, 16_777_215.0),
+            Param::Clutch => (0.1e-3, 20.0e-3),
+            Param::PowerUpAngle => (-3.2, 3.2),
         }
     }
 }
@@ -285,6 +460,10 @@ pub enum OverrideError {
     OutOfRange(Param),
     /// The factor is outside [`FACTOR_MIN`] (0 for frictions) … [`FACTOR_MAX`].
     FactorOutOfRange(Param),
+    /// A wiring sign other than `1` or `-1`.
+    NotASign(Param),
+    /// A count that is not a whole number.
+    NotWhole(Param),
 }
 
 impl fmt::Display for OverrideError {
@@ -346,6 +525,8 @@ impl fmt::Display for OverrideError {
                 let (lo, hi) = p.factor_range();
                 write!(f, "{}: factor outside x{lo} … x{hi}", p.name())
             }
+            OverrideError::NotASign(p) => write!(f, "{}: must be 1 or -1", p.name()),
+            OverrideError::NotWhole(p) => write!(f, "{}: must be a whole number", p.name()),
         }
     }
 }
@@ -402,6 +583,12 @@ impl Override {
             .map(|&(_, k)| k)
             .ok_or(OverrideError::Unit(param))?;
         let v = (v * scale) as f32;
+        if param.is_sign() && v != 1.0 && v != -1.0 {
+            return Err(OverrideError::NotASign(param));
+        }
+        if param.is_integer() && libm::floorf(v) != v {
+            return Err(OverrideError::NotWhole(param));
+        }
         let (lo, hi) = param.range();
         if !(lo..=hi).contains(&v) {
             return Err(OverrideError::OutOfRange(param));
@@ -542,6 +729,12 @@ mod tests {
             ("pot-offset=x2", E::FactorOfOffset(Param::PotOffset)),
             ("supply=infV", E::NotANumber(Param::Supply)),
             ("supply=NaNV", E::NotANumber(Param::Supply)),
+            ("motor-polarity=0", E::NotASign(Param::MotorPolarity)),
+            ("pot-direction=x1", E::FactorOfOffset(Param::PotDirection)),
+            ("encoder-counts=1000.5", E::NotWhole(Param::EncoderCounts)),
+            ("encoder-counts=8", E::OutOfRange(Param::EncoderCounts)),
+            ("clutch=3", E::Unit(Param::Clutch)),
+            ("clutch=30mm", E::OutOfRange(Param::Clutch)),
         ];
         for (s, want) in cases {
             let got = Override::parse(s).unwrap_err();
@@ -572,6 +765,26 @@ mod tests {
         assert_eq!(pc.sensors.current_gain, 0.95);
         assert_eq!(pc.link.inertia_kg_m2, 3.0 * 1.0e-3);
         assert_eq!(pc.motor.supply_voltage_v, 10.5);
+        let real = Overrides::parse_all([
+            "motor-polarity=-1",
+            "encoder-direction=-1",
+            "encoder-zero=100",
+            "pot-direction=-1",
+            "pot-gain=x1.1",
+            "clutch=3.5mm",
+            "power-up-angle=-30deg",
+            "noise-seed=99",
+        ])
+        .unwrap()
+        .apply(&nominal);
+        assert_eq!(real.motor.polarity, -1.0);
+        assert_eq!(real.sensors.encoder_direction, -1.0);
+        assert_eq!(real.sensors.encoder_zero_counts, 100);
+        assert_eq!(real.sensors.pot_direction, -1.0);
+        assert_eq!(real.sensors.pot_gain, 1.1);
+        assert_eq!(real.clutch_length_m, 3.5e-3);
+        assert_eq!(real.power_up_angle_rad, (-30f64).to_radians() as f32);
+        assert_eq!(real.sensors.noise_seed, 99);
         // Untouched parameters stay nominal.
         assert_eq!(
             pc.motor.back_emf_v_s_per_rad,

@@ -84,8 +84,8 @@ pub struct SensorReadings {
     /// Gear-side potentiometer, 0..=1023 over 300° (0.293°/count), clamped at the ends;
     /// `pot_center_counts` (default 512) at gear angle 0; rounds to nearest.
     pub gear_pot: u16,
-    /// Link-side magnetic encoder, 0..=4095 per revolution, wraps; truncates (floor);
-    /// `encoder_zero_counts` at link angle 0.
+    /// Link-side incremental encoder, 0..`encoder_counts_per_turn` (4096) per revolution,
+    /// wraps; truncates (floor); `encoder_zero_counts` at the power-up angle.
     pub link_encoder: u16,
     /// Motor current ADC, 0..=4095: 2048 + 1024·gain·i (i in A, ±2 A full scale) + offset error +
     /// noise, rounded, clamped at the rails.
@@ -104,18 +104,39 @@ fn round_clamp(x: f32, max: u16) -> u16 {
     }
 }
 
-pub(crate) fn pot_counts(gear_angle_rad: f64, center: f32) -> u16 {
+/// The pot's reading at gear angle `gear_angle_rad`: centre + direction·gain·slope·θ, plus
+/// the non-linearity `inl`·sin(2π·c/1024) at ideal count c and `noise` (counts), rounded
+/// and clamped at the rails. With direction and gain 1 and no non-linearity or noise it is
+/// the ideal pot, bit for bit (the extra terms are skipped).
+pub(crate) fn pot_counts(gear_angle_rad: f64, s: &crate::SensorConfig, noise: f32) -> u16 {
+    let slope = f64::from(POT_COUNTS_PER_RAD);
+    let ideal = if s.pot_direction == 1.0 && s.pot_gain == 1.0 {
+        gear_angle_rad * slope
+    } else {
+        gear_angle_rad * slope * f64::from(s.pot_direction * s.pot_gain)
+    };
     // Clamp in f64 first so that huge angles do not lose the clamp in f32.
-    let x = gear_angle_rad * f64::from(POT_COUNTS_PER_RAD) + f64::from(center);
-    let x = x.clamp(-1.0, 1024.0);
-    round_clamp(x as f32, POT_COUNTS - 1)
+    let mut x = (ideal + f64::from(s.pot_center_counts)).clamp(-1.0, 1024.0) as f32;
+    if s.pot_nonlinearity_counts != 0.0 {
+        let turn = x * (core::f32::consts::TAU / f32::from(POT_COUNTS));
+        x += s.pot_nonlinearity_counts * libm::sinf(turn);
+    }
+    round_clamp(x + noise, POT_COUNTS - 1)
 }
 
-pub(crate) fn encoder_counts(link_angle_rad: f64, zero: u16) -> u16 {
-    let counts_per_rad = f64::from(ENCODER_COUNTS) / (2.0 * core::f64::consts::PI);
+/// The incremental link encoder: `zero` at power-up, counting `direction` × the link's
+/// turn since then at `per_turn` counts per turn (floor), wrapping at `per_turn`.
+pub(crate) fn encoder_counts(since_power_up_rad: f64, s: &crate::SensorConfig) -> u16 {
+    let per_turn = s.encoder_counts_per_turn.max(1);
+    let counts_per_rad = f64::from(per_turn) / (2.0 * core::f64::consts::PI);
+    let turned = if s.encoder_direction < 0.0 {
+        -since_power_up_rad
+    } else {
+        since_power_up_rad
+    };
     // `as` saturates (NaN → 0): no panic; rem_euclid by a positive constant cannot panic.
-    let c = libm::floor(link_angle_rad * counts_per_rad) as i64 + i64::from(zero);
-    c.rem_euclid(i64::from(ENCODER_COUNTS)) as u16
+    let c = libm::floor(turned * counts_per_rad) as i64 + i64::from(s.encoder_zero_counts);
+    c.rem_euclid(i64::from(per_turn)) as u16
 }
 
 pub(crate) fn adc_counts(current_a: f32, gain: f32, offset: f32, noise: f32) -> u16 {

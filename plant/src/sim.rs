@@ -183,7 +183,8 @@ pub struct Plant {
 }
 
 impl Plant {
-    /// A plant at rest at θ_gear = θ_link = 0, bridge coasting; the sensors are sampled once.
+    /// A plant at rest at θ_gear = θ_link = the power-up angle (0 by default), bridge
+    /// coasting; the sensors are sampled once.
     pub fn new(cfg: PlantConfig) -> Self {
         let mut p = Self {
             cfg,
@@ -204,7 +205,8 @@ impl Plant {
             readings: SensorReadings::default(),
             faults: SensorFaults::default(),
         };
-        p.set_state(0.0, 0.0, 0.0, 0.0);
+        let a = f64::from(cfg.power_up_angle_rad);
+        p.set_state(a, 0.0, a, 0.0);
         p
     }
 
@@ -329,7 +331,8 @@ impl Plant {
         match self.command {
             BridgeCommand::Drive(duty) => {
                 let duty = duty.clamp(-DUTY_FULL_SCALE, DUTY_FULL_SCALE);
-                f32::from(duty) * self.d.volts_per_permille
+                // Swapped motor leads: the motor sees the bridge's voltage reversed.
+                f32::from(duty) * self.d.volts_per_permille * self.cfg.motor.polarity
             }
             _ => 0.0,
         }
@@ -437,11 +440,21 @@ impl Plant {
     fn sample_sensors(&mut self) {
         let s = &self.cfg.sensors;
         let noise = s.current_noise_counts * self.rng.next_gaussian();
+        // The pot's noise is drawn only when configured, so the current noise's sequence
+        // (and every digest of a run without pot noise) stays as it was.
+        let pot_noise = if s.pot_noise_counts > 0.0 {
+            s.pot_noise_counts * self.rng.next_gaussian()
+        } else {
+            0.0
+        };
+        let since_power_up = self.theta_l - f64::from(self.cfg.power_up_angle_rad);
         let raw = SensorReadings {
-            gear_pot: pot_counts(self.theta_g, s.pot_center_counts),
-            link_encoder: encoder_counts(self.theta_l, s.encoder_zero_counts),
+            gear_pot: pot_counts(self.theta_g, s, pot_noise),
+            link_encoder: encoder_counts(since_power_up, s),
+            // The sense sits in the bridge's output: it reads the bridge current, the
+            // motor's times the lead polarity.
             current_adc: adc_counts(
-                self.current_a,
+                self.current_a * self.cfg.motor.polarity,
                 s.current_gain,
                 s.current_offset_counts,
                 noise,

@@ -208,3 +208,61 @@ fn fault_hooks() {
     *p.faults_mut() = Default::default();
     assert_eq!(p.step_tick(500), healthy);
 }
+
+#[test]
+fn a_real_build_reads_reversed_offset_and_scaled() {
+    use plant::overrides::Overrides;
+    let o = Overrides::parse_all([
+        "encoder-direction=-1",
+        "encoder-counts=4000",
+        "encoder-zero=17",
+        "pot-direction=-1",
+        "pot-gain=1.1",
+        "motor-polarity=-1",
+        "power-up-angle=0.5rad",
+    ])
+    .unwrap();
+    let pc = o.apply(&PlantConfig {
+        coupling: CouplingConfig::linear(0.0),
+        gear_locked: true,
+        ..PlantConfig::default()
+    });
+    let mut p = Plant::new(pc);
+    // Incremental encoder: its power-up value wherever the link is.
+    assert_eq!(p.readings().link_encoder, 17);
+    // The pot is absolute: 0.5 rad at −1.1 × 195.57 counts/rad below the centre.
+    let want = (512.0 - 0.5 * 1.1 * f64::from(plant::POT_COUNTS_PER_RAD)).round() as u16;
+    assert_eq!(p.readings().gear_pot, want);
+    // The link turns −0.1 rad: a reversed 4000-count encoder counts up 63.66 → 63 (floor).
+    p.set_state(0.5, 0.0, 0.4, 0.0);
+    assert_eq!(p.readings().link_encoder, 17 + 63);
+    // Swapped motor leads: a positive duty drives the (locked) gear negative, and the
+    // bridge's sense still reads a positive current.
+    let r = p.step_tick(1000);
+    assert_eq!(p.state().motor_current_a, -1.5);
+    assert_eq!(r.current_adc, 2048 + 1536);
+}
+
+#[test]
+fn pot_noise_and_bow_are_seeded_and_bounded() {
+    let run = |seed: u32| {
+        let mut p = plant_with(SensorConfig {
+            pot_noise_counts: 0.5,
+            pot_nonlinearity_counts: 2.0,
+            noise_seed: seed,
+            ..SensorConfig::default()
+        });
+        (0..2000)
+            .map(|_| p.step_tick(0).gear_pot)
+            .collect::<Vec<u16>>()
+    };
+    let (a, b) = (run(7), run(7));
+    assert_eq!(a, b, "same seed, same readings");
+    // At gear angle 0 the bow is 0 (sin of half a turn): noise only, within ±3.46σ.
+    assert!(
+        a.iter().all(|&c| (510..=514).contains(&c)),
+        "{:?}",
+        &a[..20]
+    );
+    assert!(a.iter().any(|&c| c != 512), "the noise shows");
+}

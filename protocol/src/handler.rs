@@ -1,7 +1,8 @@
 //! The request handler: one reply per decoded frame, side effects through [`Device`].
 
 use crate::frame::{Decoder, Frame, FrameError};
-use crate::msg::{ErrorCode, FaultRecord, Gains, Limits, Reply, Request, Status};
+use crate::msg::{ErrorCode, FaultRecord, Gains, Limits, LoggedFault, Reply, Request, Status};
+use crate::replay::ReplyCache;
 use crate::VERSION;
 
 /// What the handler asks of the device (implemented by the firmware over its controller
@@ -106,6 +107,22 @@ pub trait Device {
     /// [`Request::GetLimits`]: the limits and the position window in force.
     fn limits(&mut self) -> Limits;
 
+    /// [`Request::Impedance`]: hold `target_urad` µrad with virtual stiffness
+    /// `stiffness_mnm_per_rad` mN·m/rad, damping `damping_unms_per_rad` µN·m·s/rad and
+    /// feed-forward torque `torque_unm` µN·m.
+    ///
+    /// # Errors
+    /// [`ErrorCode::NotAllowed`] when not enabled; [`ErrorCode::OutOfRange`] for a
+    /// stiffness above the joint's at the clutch setting or a target outside the position
+    /// window.
+    fn impedance(
+        &mut self,
+        target_urad: i32,
+        stiffness_mnm_per_rad: u32,
+        damping_unms_per_rad: u32,
+        torque_unm: i32,
+    ) -> Result<(), ErrorCode>;
+
     /// [`Request::GetStatus`]: the current status (`protocol_errors` is overwritten by the
     /// handler).
     fn status(&mut self) -> Status;
@@ -125,6 +142,41 @@ pub trait Device {
     fn nudge(&mut self, duty_permille: i16, duration_ms: u16) -> Result<(), ErrorCode> {
         let _ = (duty_permille, duration_ms);
         Err(ErrorCode::NotAllowed)
+    }
+
+    /// [`Request::Save`]: the running configuration into the settings store.
+    ///
+    /// # Errors
+    /// [`ErrorCode::NotAllowed`] while enabled; [`ErrorCode::Storage`] if the flash failed
+    /// or (the default) the device has no store.
+    fn save(&mut self) -> Result<(), ErrorCode> {
+        Err(ErrorCode::Storage)
+    }
+
+    /// [`Request::Load`]: re-read the store and apply it.
+    ///
+    /// # Errors
+    /// [`ErrorCode::Storage`] without a store (the default).
+    fn load(&mut self) -> Result<(), ErrorCode> {
+        Err(ErrorCode::Storage)
+    }
+
+    /// [`Request::FactoryReset`]: forget the stored records and the fault log; defaults.
+    ///
+    /// # Errors
+    /// [`ErrorCode::NotAllowed`] while enabled; [`ErrorCode::Storage`] if the flash failed
+    /// or (the default) the device has no store.
+    fn factory_reset(&mut self) -> Result<(), ErrorCode> {
+        Err(ErrorCode::Storage)
+    }
+
+    /// [`Request::FaultsLog`]: the number of logged faults and entry `index` (0 = the most
+    /// recent), if it exists.
+    ///
+    /// # Errors
+    /// [`ErrorCode::Storage`] without a store (the default).
+    fn faults_log(&mut self, _index: u8) -> Result<(u8, Option<LoggedFault>), ErrorCode> {
+        Err(ErrorCode::Storage)
     }
 }
 
@@ -215,6 +267,8 @@ impl ErrorCounters {
 pub struct Handler {
     errors: ErrorCounters,
     requests: u32,
+    /// The last reply, for a retried request (same `seq`, same request).
+    cache: ReplyCache,
 }
 
 fn done(r: Result<(), ErrorCode>) -> Result<Reply, ErrorCode> {
@@ -240,7 +294,14 @@ impl Handler {
                 other: 0,
             },
             requests: 0,
+            cache: ReplyCache::new(),
         }
+    }
+
+    /// Retried requests answered with the reply they already had (carried out once).
+    #[must_use]
+    pub const fn replayed(&self) -> u32 {
+        self.cache.replayed()
     }
 
     /// The error counters.
@@ -273,6 +334,10 @@ impl Handler {
                 seq: Some(frame.seq),
             });
         }
+        if let Some(reply) = self.cache.replay(&frame) {
+            dev.link_activity();
+            return reply;
+        }
         bump(&mut self.requests);
         let reply = match frame.body.validate() {
             Ok(()) => {
@@ -288,6 +353,7 @@ impl Handler {
                 Reply::Error(code)
             }
         };
+        self.cache.keep(frame.seq, frame.body, body);
         Frame::new(frame.seq, body)
     }
 
@@ -335,6 +401,23 @@ impl Handler {
             }
             Request::GetLimits => Ok(Reply::Limits(dev.limits())),
             Request::GetSensors | Request::Nudge { .. } => crate::sensors::dispatch(req, dev),
+            Request::Save => done(dev.save()),
+            Request::Load => done(dev.load()),
+            Request::FactoryReset => done(dev.factory_reset()),
+            Request::FaultsLog { index } => dev
+                .faults_log(index)
+                .map(|(count, entry)| Reply::FaultsLog { count, entry }),
+            Request::Impedance {
+                target_urad,
+                stiffness_mnm_per_rad,
+                damping_unms_per_rad,
+                torque_unm,
+            } => done(dev.impedance(
+                target_urad,
+                stiffness_mnm_per_rad,
+                damping_unms_per_rad,
+                torque_unm,
+            )),
         }
     }
 

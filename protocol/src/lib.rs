@@ -46,6 +46,7 @@
 //! | `_hz` | hertz (telemetry rate) | `u16` |
 //! | `_ma` | milliampere (motor current) | `i16`/`u16` |
 //! | `_unm` | µN·m (torque) | `i32`/`u32` |
+//! | `_unms_per_rad` | µN·m·s/rad (damping) | `u32` |
 //! | `_permille` | ‰ (PWM duty: ±1000 = ± the supply; ratios) | `i16`/`u16` |
 //! | gains | 10⁻³ of the controller's units (see [`Gains`]) | `u64` |
 //!
@@ -95,6 +96,7 @@
 mod frame;
 mod handler;
 mod msg;
+mod replay;
 mod sensors;
 
 pub use frame::{
@@ -103,9 +105,10 @@ pub use frame::{
 };
 pub use handler::{Device, ErrorCounters, Handler};
 pub use msg::{
-    ErrorCode, FaultCode, FaultRecord, FaultSet, Gains, LimitFlags, Limits, Reply, Request, State,
-    Status, TelemetrySample,
+    ErrorCode, FaultCode, FaultRecord, FaultSet, Gains, LimitFlags, Limits, LoggedFault, Reply,
+    Request, State, Status, TelemetrySample,
 };
+pub use replay::ReplyCache;
 pub use sensors::{RawSensors, NUDGE_DURATION_MAX_MS, NUDGE_DUTY_MAX_PERMILLE};
 
 /// Protocol version carried in every frame. A frame with another version is answered with
@@ -124,11 +127,12 @@ pub const MAX_HEADER: usize = 1 + 3;
 /// Largest postcard encoding of a [`Request`] body: `SetGains`, tag (1) + 3 × u64 (10).
 pub const MAX_REQUEST_BODY: usize = 1 + 3 * 10;
 
-/// Largest postcard encoding of a [`Reply`] body: `Status`, tag (1) + 46.
+/// Largest postcard encoding of a [`Reply`] body: `Status`, tag (1) + 47.
 ///
 /// state 1, faults 3, first fault 1 + (code 1 + value 5 + tick 5), limits 1, clutch 5,
-/// stiffness 5, tick 5, moving 1, telemetry rate 3, telemetry dropped 5, protocol errors 5.
-pub const MAX_REPLY_BODY: usize = 1 + 46;
+/// stiffness 5, tick 5, moving 1, telemetry rate 3, telemetry dropped 5, protocol errors 5,
+/// differs from stored 1.
+pub const MAX_REPLY_BODY: usize = 1 + 47;
 
 /// Largest postcard encoding of a telemetry reply body: tag (1) + 35 (see
 /// [`TelemetrySample`]).
@@ -166,6 +170,15 @@ pub const STIFFNESS_MIN_MNM_PER_RAD: u32 = 1;
 /// (φ_b + θ_cap(L) + the pot's calibration tolerance: 67 mrad at L = 8 mm; checked by the
 /// service's tests). A device also refuses a target outside its configured position window.
 pub const TARGET_MAX_URAD: u32 = 2_540_000;
+
+/// Smallest virtual stiffness of [`Request::Impedance`], mN·m/rad (0.1 N·m/rad: 1/k_v
+/// must fit the controller's format). The largest is the joint stiffness at the clutch
+/// setting, the device's check.
+pub const IMPEDANCE_STIFFNESS_MIN_MNM_PER_RAD: u32 = 100;
+/// Largest virtual damping of [`Request::Impedance`], µN·m·s/rad (100 N·m·s/rad).
+pub const IMPEDANCE_DAMPING_MAX_UNMS_PER_RAD: u32 = 100_000_000;
+/// Largest |feed-forward torque| of [`Request::Impedance`], µN·m (100 N·m).
+pub const IMPEDANCE_TORQUE_MAX_UNM: u32 = 100_000_000;
 
 /// Move duration range, ms: 1 ms – 60 s.
 pub const MOVE_DURATION_MIN_MS: u32 = 1;

@@ -6,7 +6,8 @@
 use serde::{Deserialize, Serialize};
 
 use crate::{
-    CLUTCH_MAX_UM, CLUTCH_MIN_UM, CURRENT_LIMIT_MAX_MA, KD_MAX, KI_MAX, KP_MAX,
+    CLUTCH_MAX_UM, CLUTCH_MIN_UM, CURRENT_LIMIT_MAX_MA, IMPEDANCE_DAMPING_MAX_UNMS_PER_RAD,
+    IMPEDANCE_STIFFNESS_MIN_MNM_PER_RAD, IMPEDANCE_TORQUE_MAX_UNM, KD_MAX, KI_MAX, KP_MAX,
     MOTOR_TORQUE_LIMIT_MAX_UNM, MOVE_DURATION_MAX_MS, MOVE_DURATION_MIN_MS,
     SINE_AMPLITUDE_MAX_URAD, SINE_FREQUENCY_MAX_MHZ, SINE_FREQUENCY_MIN_MHZ,
     STIFFNESS_MIN_MNM_PER_RAD, TARGET_MAX_URAD, TELEMETRY_RATE_MAX_HZ, TELEMETRY_RATE_MIN_HZ,
@@ -100,6 +101,38 @@ pub enum Request {
         duty_permille: i16,
         /// How long, ms, 1..=[`crate::NUDGE_DURATION_MAX_MS`].
         duration_ms: u16,
+    },
+    /// Write the running configuration to the settings store (with the stored calibration
+    /// and bus settings), atomically. Refused with [`ErrorCode::NotAllowed`] while the motor
+    /// is enabled (programming the flash stalls the control loop on the real board);
+    /// [`ErrorCode::Storage`] if the flash fails or the device has no store.
+    Save,
+    /// Re-read the settings store and apply what is stored and valid (defaults for the
+    /// rest). [`ErrorCode::Storage`] if the device has no store.
+    Load,
+    /// Forget every stored record and the fault log, and go back to the defaults. Refused
+    /// with [`ErrorCode::NotAllowed`] while the motor is enabled.
+    FactoryReset,
+    /// One entry of the stored fault log. Reply: [`Reply::FaultsLog`].
+    FaultsLog {
+        /// Which entry, 0 = the most recent; beyond the log's length the reply has none.
+        index: u8,
+    },
+    /// Hold the link at `target_urad` as a spring-damper: virtual stiffness, virtual
+    /// damping and a feed-forward torque (the link first moves to the target, then the
+    /// coupling torque follows k_v·(θ_t − θ) − d_v·θ̇ + τ_ff), until the next motion
+    /// command or [`Request::Hold`]. The device refuses a stiffness above the beams' at
+    /// the clutch setting with [`ErrorCode::OutOfRange`].
+    Impedance {
+        /// Target link angle θ_t, µrad, |·| ≤ [`TARGET_MAX_URAD`].
+        target_urad: i32,
+        /// Virtual stiffness k_v, mN·m/rad, ≥ [`IMPEDANCE_STIFFNESS_MIN_MNM_PER_RAD`] and
+        /// at most the joint stiffness at the clutch setting (the device's check).
+        stiffness_mnm_per_rad: u32,
+        /// Virtual damping d_v, µN·m·s/rad, ≤ [`IMPEDANCE_DAMPING_MAX_UNMS_PER_RAD`].
+        damping_unms_per_rad: u32,
+        /// Feed-forward torque τ_ff, µN·m, |·| ≤ [`IMPEDANCE_TORQUE_MAX_UNM`].
+        torque_unm: i32,
     },
 }
 
@@ -196,7 +229,11 @@ impl Request {
             | Request::AutoGains
             | Request::Heartbeat
             | Request::DisarmHeartbeat
-            | Request::GetLimits => true,
+            | Request::GetLimits
+            | Request::Save
+            | Request::Load
+            | Request::FactoryReset
+            | Request::FaultsLog { .. } => true,
             Request::SetClutchLength { length_um } => {
                 (CLUTCH_MIN_UM..=CLUTCH_MAX_UM).contains(&length_um)
             }
@@ -228,6 +265,17 @@ impl Request {
                 duty_permille,
                 duration_ms,
             } => crate::sensors::nudge_ok(duty_permille, duration_ms),
+            Request::Impedance {
+                target_urad,
+                stiffness_mnm_per_rad,
+                damping_unms_per_rad,
+                torque_unm,
+            } => {
+                target_ok(target_urad)
+                    && stiffness_mnm_per_rad >= IMPEDANCE_STIFFNESS_MIN_MNM_PER_RAD
+                    && damping_unms_per_rad <= IMPEDANCE_DAMPING_MAX_UNMS_PER_RAD
+                    && torque_unm.unsigned_abs() <= IMPEDANCE_TORQUE_MAX_UNM
+            }
         };
         if ok {
             Ok(())
@@ -258,6 +306,8 @@ pub enum ErrorCode {
     Busy,
     /// The frame's version is not [`crate::VERSION`].
     UnsupportedVersion,
+    /// The settings store failed (a flash error), or the device has none.
+    Storage,
 }
 
 impl core::fmt::Display for ErrorCode {
@@ -270,6 +320,7 @@ impl core::fmt::Display for ErrorCode {
             ErrorCode::NotAllowed => "not allowed in this state",
             ErrorCode::Busy => "busy",
             ErrorCode::UnsupportedVersion => "unsupported protocol version",
+            ErrorCode::Storage => "settings store failed or absent",
         })
     }
 }
@@ -304,6 +355,24 @@ pub enum Reply {
     FaultPersists(FaultRecord),
     /// Reply to [`Request::GetSensors`].
     Sensors(crate::RawSensors),
+    /// Reply to [`Request::FaultsLog`]: how many faults the stored log holds, and the one
+    /// asked for if it exists.
+    FaultsLog {
+        /// Entries in the log (at most 16).
+        count: u8,
+        /// The entry asked for.
+        entry: Option<LoggedFault>,
+    },
+}
+
+/// A latched fault as the settings store's fault log keeps it (it survives resets).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LoggedFault {
+    /// Number of the fault since the log was last cleared (factory reset).
+    pub seq: u32,
+    /// The fault; its `tick` is the uptime at which it latched, ms since that boot.
+    pub fault: FaultRecord,
 }
 
 /// Operating state.
@@ -346,11 +415,14 @@ pub enum FaultCode {
     DeadlineMissed = 8,
     /// No heartbeat within the command timeout. Value: ms since the last one.
     CommandTimeout = 9,
+    /// The beams are softer than configured (the clutch is longer than the host said).
+    /// Value: estimated/configured compliance, ‰.
+    ClutchMismatch = 10,
 }
 
 impl FaultCode {
     /// Every code, in the supervisor's check order.
-    pub const ALL: [FaultCode; 9] = [
+    pub const ALL: [FaultCode; 10] = [
         FaultCode::SensorRead,
         FaultCode::AdcOutOfRange,
         FaultCode::OverCurrent,
@@ -360,6 +432,7 @@ impl FaultCode {
         FaultCode::PositionLimit,
         FaultCode::DeadlineMissed,
         FaultCode::CommandTimeout,
+        FaultCode::ClutchMismatch,
     ];
 
     /// The code as logged and sent.
@@ -382,6 +455,7 @@ impl FaultCode {
             FaultCode::PositionLimit => "position-limit",
             FaultCode::DeadlineMissed => "deadline-missed",
             FaultCode::CommandTimeout => "command-timeout",
+            FaultCode::ClutchMismatch => "clutch-mismatch",
         }
     }
 
@@ -398,6 +472,7 @@ impl FaultCode {
             7 => FaultCode::PositionLimit,
             8 => FaultCode::DeadlineMissed,
             9 => FaultCode::CommandTimeout,
+            10 => FaultCode::ClutchMismatch,
             _ => return None,
         })
     }
@@ -513,6 +588,10 @@ pub struct Status {
     /// Protocol errors since boot ([`crate::ErrorCounters::total`]); filled in by the
     /// [`crate::Handler`], whatever the device reports.
     pub protocol_errors: u32,
+    /// The running configuration differs from the one in the settings store (or, with
+    /// nothing stored, from the defaults): `save` would change what the next boot loads.
+    /// `false` on a device without a store.
+    pub differs_from_stored: bool,
 }
 
 /// One telemetry sample (taken at a control tick).

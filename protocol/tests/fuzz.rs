@@ -52,6 +52,18 @@ fn in_range(r: &Request) -> bool {
                 && l.position_min_urad < l.position_max_urad
         }
         Request::StreamTelemetry { rate_hz } => rate_hz == 0 || (10..=500).contains(&rate_hz),
+        // 0.1 N·m/rad up; 100 N·m·s/rad; ±100 N·m.
+        Request::Impedance {
+            target_urad,
+            stiffness_mnm_per_rad,
+            damping_unms_per_rad,
+            torque_unm,
+        } => {
+            angle(target_urad)
+                && stiffness_mnm_per_rad >= 100
+                && damping_unms_per_rad <= 100_000_000
+                && i64::from(torque_unm).abs() <= 100_000_000
+        }
         Request::Ping
         | Request::GetStatus
         | Request::Enable
@@ -62,7 +74,11 @@ fn in_range(r: &Request) -> bool {
         | Request::Heartbeat
         | Request::DisarmHeartbeat
         | Request::GetLimits
-        | Request::GetSensors => true,
+        | Request::GetSensors
+        | Request::Save
+        | Request::Load
+        | Request::FactoryReset
+        | Request::FaultsLog { .. } => true,
         Request::Nudge {
             duty_permille,
             duration_ms,
@@ -274,6 +290,11 @@ proptest! {
                     prop_assert_eq!(req, Request::GetSensors);
                     prop_assert_eq!(r, protocol::RawSensors::default());
                 }
+                Reply::FaultsLog { count, entry } => {
+                    let asked = matches!(req, Request::FaultsLog { .. });
+                    prop_assert!(asked, "FaultsLog for {:?}", req);
+                    prop_assert_eq!((count, entry), (0, None), "the mock's log is empty");
+                }
             }
         } else {
             prop_assert_eq!(reply.body, Reply::Error(ErrorCode::OutOfRange));
@@ -421,7 +442,7 @@ proptest! {
 #[test]
 fn frames_are_bounded_and_message_counts_match() {
     println!("fuzz cases per property: {}", config(FUZZ_CASES).cases);
-    assert_eq!(Request::VARIANTS, 20);
-    assert_eq!(Reply::VARIANTS, 8);
+    assert_eq!(Request::VARIANTS, 25);
+    assert_eq!(Reply::VARIANTS, 9);
     const { assert!(MAX_FRAME <= 64, "a frame fits a 64-byte DMA/queue slot") };
 }

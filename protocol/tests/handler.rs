@@ -546,3 +546,27 @@ fn frame_error_replies() {
         assert_eq!(e.reply(), Frame::new(seq, Reply::Error(code)), "{e}");
     }
 }
+
+#[test]
+fn a_retried_request_is_answered_from_the_cache_and_carried_out_once() {
+    let mut rig = Rig::new(MockDevice::default());
+    let first = send(&mut rig, 5, Request::Enable);
+    assert_eq!(first.body, Reply::Ok);
+    let calls = rig.device.calls.len();
+    // The host got no reply (the line ate it) and sends the same frame again.
+    assert_eq!(send(&mut rig, 5, Request::Enable), first);
+    assert_eq!(rig.device.calls.len(), calls, "not carried out twice");
+    assert_eq!(rig.handler.replayed(), 1);
+    assert_eq!(rig.handler.requests(), 1);
+    // The same seq with another request (a wrapped counter) is carried out.
+    assert_eq!(send(&mut rig, 5, Request::Disable).body, Reply::Ok);
+    assert_eq!(rig.device.state, State::Disabled);
+    // A refusal is replayed as well, without counting a second refusal.
+    let r = send(&mut rig, 6, Request::SetClutchLength { length_um: 1 });
+    assert_eq!(r.body, Reply::Error(ErrorCode::OutOfRange));
+    assert_eq!(
+        send(&mut rig, 6, Request::SetClutchLength { length_um: 1 }),
+        r
+    );
+    assert_eq!(rig.handler.errors().out_of_range, 1);
+}

@@ -8,8 +8,8 @@ use proptest::prelude::*;
 use protocol::{
     decode_payload, encode, encode_telemetry, encode_to_vec, telemetry_frame, Decoder, EncodeError,
     ErrorCode, FaultCode, FaultRecord, FaultSet, Frame, FrameError, Gains, LimitFlags, Limits,
-    Message, Reply, Request, State, Status, TelemetrySample, CRC, MAX_FRAME, MAX_PAYLOAD,
-    MAX_TELEMETRY_FRAME, VERSION,
+    LoggedFault, Message, Reply, Request, State, Status, TelemetrySample, CRC, MAX_FRAME,
+    MAX_PAYLOAD, MAX_TELEMETRY_FRAME, VERSION,
 };
 
 /// Decodes `bytes` byte by byte; panics on any error or a frame before the last byte.
@@ -165,6 +165,16 @@ fn largest_requests() -> Vec<Request> {
             duty_permille: i16::MIN,
             duration_ms: u16::MAX,
         },
+        Request::Save,
+        Request::Load,
+        Request::FactoryReset,
+        Request::FaultsLog { index: u8::MAX },
+        Request::Impedance {
+            target_urad: i32::MIN,
+            stiffness_mnm_per_rad: u32::MAX,
+            damping_unms_per_rad: u32::MAX,
+            torque_unm: i32::MIN,
+        },
     ]
 }
 
@@ -202,6 +212,7 @@ fn largest_replies() -> Vec<Reply> {
             telemetry_rate_hz: u16::MAX,
             telemetry_dropped: u32::MAX,
             protocol_errors: u32::MAX,
+            differs_from_stored: true,
         }),
         Reply::ClutchToSet {
             length_um: u32::MAX,
@@ -227,6 +238,17 @@ fn largest_replies() -> Vec<Reply> {
             current_adc: u16::MAX,
             nudge_duty_permille: i16::MIN,
         }),
+        Reply::FaultsLog {
+            count: u8::MAX,
+            entry: Some(LoggedFault {
+                seq: u32::MAX,
+                fault: FaultRecord {
+                    code: FaultCode::CommandTimeout,
+                    value: i32::MIN,
+                    tick: u32::MAX,
+                },
+            }),
+        },
     ]
 }
 
@@ -335,9 +357,9 @@ fn fault_codes_on_the_wire() {
     }
     assert_eq!(
         FaultCode::ALL.map(FaultCode::code),
-        [1, 2, 3, 4, 5, 6, 7, 8, 9]
+        [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]
     );
-    for bad in [0u8, 10, 255] {
+    for bad in [0u8, 11, 255] {
         assert_eq!(FaultCode::from_code(bad), None);
         assert!(postcard::from_bytes::<FaultCode>(&[bad]).is_err());
     }

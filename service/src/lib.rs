@@ -29,13 +29,17 @@ use model::servo::{BridgeDemand, Prepared, Servo, ServoError, ServoState, TickIn
 use model::supervisor::{FaultCode as ModelFaultCode, SupervisorConfig};
 use model::{Angle, Design, Frequency, Length, Ratio, Stiffness, Torque};
 use protocol::{
-    Device, ErrorCode, FaultCode, FaultRecord, FaultSet, Gains, LimitFlags, Limits, State, Status,
-    TelemetrySample,
+    Device, ErrorCode, FaultCode, FaultRecord, FaultSet, Gains, LimitFlags, Limits, LoggedFault,
+    State, Status, TelemetrySample,
 };
 use rtic_core::Mutex;
 
+pub mod dynamixel;
+mod impedance;
+pub mod line;
 pub mod link;
 pub mod sensors;
+pub mod store;
 
 use fixed::types::I32F32;
 
@@ -137,6 +141,7 @@ pub const fn wire_fault_code(code: ModelFaultCode) -> FaultCode {
         ModelFaultCode::PositionLimit => FaultCode::PositionLimit,
         ModelFaultCode::DeadlineMissed => FaultCode::DeadlineMissed,
         ModelFaultCode::CommandTimeout => FaultCode::CommandTimeout,
+        ModelFaultCode::ClutchMismatch => FaultCode::ClutchMismatch,
     }
 }
 
@@ -228,6 +233,10 @@ pub struct Actuator {
     limits: LimitFlags,
     /// Measured link angle at the last tick, I32F32 rad (a sine's centre).
     link_angle: i64,
+    /// Link velocity at the last tick, I32F32 rad/s (the Dynamixel Present Speed).
+    link_velocity: i64,
+    /// Torque estimate at the last tick, I32F32 N·m (the Dynamixel Present Load).
+    torque: i64,
 }
 
 impl Actuator {
@@ -240,6 +249,8 @@ impl Actuator {
             open_loop: sensors::OpenLoop::default(),
             limits: LimitFlags::NONE,
             link_angle: 0,
+            link_velocity: 0,
+            torque: 0,
         }
     }
 
@@ -253,6 +264,8 @@ impl Actuator {
     ) -> Option<(u16, TelemetrySample)> {
         self.limits = wire_limits(&out.control.flags);
         self.link_angle = out.control.link_angle.to_bits();
+        self.link_velocity = out.control.link_velocity.to_bits();
+        self.torque = out.control.torque_estimate.to_bits();
         let seq = self.telemetry.due()?;
         Some((seq, self.sample(input, out)))
     }
@@ -332,7 +345,77 @@ impl Actuator {
             telemetry_rate_hz: self.telemetry.rate_hz(),
             telemetry_dropped: self.telemetry.dropped(),
             protocol_errors: 0,
+            differs_from_stored: false,
         }
+    }
+}
+
+/// [`Request::SetClutchLength`](protocol::Request)'s length, µm, as a clutch setting.
+fn clutch_length(length_um: u32) -> ClutchSetting {
+    ClutchSetting::Length(Length::from_bits(milli_to_q32(length_um.into())))
+}
+
+/// [`Request::SetStiffness`](protocol::Request)'s stiffness, mN·m/rad, as a clutch setting.
+fn clutch_stiffness(stiffness_mnm_per_rad: u32) -> ClutchSetting {
+    // mN·m/rad = 1000 µN·m/rad.
+    ClutchSetting::Stiffness(Stiffness::from_micro(
+        i64::from(stiffness_mnm_per_rad) * 1_000,
+    ))
+}
+
+/// Wire gains (10⁻³ of the controller's units) as the controller's.
+fn pid_gains(g: Gains) -> PidGains {
+    let q = |v: u64| I32F32::from_bits(milli_to_q32(i64::try_from(v).unwrap_or(i64::MAX)));
+    PidGains {
+        kp: q(g.kp),
+        ki: q(g.ki),
+        kd: q(g.kd),
+    }
+}
+
+/// The controller's gains on the wire (inverse of [`pid_gains`]).
+fn wire_gains(g: &PidGains) -> Gains {
+    let milli = |v: I32F32| u64::try_from(q32_to_milli(v.to_bits())).unwrap_or(0);
+    Gains {
+        kp: milli(g.kp),
+        ki: milli(g.ki),
+        kd: milli(g.kd),
+    }
+}
+
+/// `config` and `supervision` with the wire `limits` (the supervisor trips
+/// [`TRIP_ABOVE_LIMIT_A`] above the current limit).
+fn with_limits(
+    mut config: Config,
+    mut supervision: SupervisorConfig,
+    limits: &Limits,
+) -> Result<(Config, SupervisorConfig), ErrorCode> {
+    let current = I32F32::from_bits(milli_to_q32(limits.current_ma.into()));
+    config.limits = model::control::Limits {
+        torque_margin: Ratio::from_bits(milli_to_q32(limits.torque_margin_permille.into())),
+        max_current_a: current,
+        max_motor_torque: Torque::from_bits(micro_to_q32(limits.motor_torque_unm.into())),
+        max_duty: i16::try_from(limits.duty_permille).map_err(|_| ErrorCode::OutOfRange)?,
+    };
+    supervision.trip_current_a = current.saturating_add(TRIP_ABOVE_LIMIT_A);
+    supervision.position_min = Angle::from_bits(micro_to_q32(limits.position_min_urad.into()));
+    supervision.position_max = Angle::from_bits(micro_to_q32(limits.position_max_urad.into()));
+    Ok((config, supervision))
+}
+
+/// The limits and position window of `config` and `supervision` on the wire (inverse of
+/// [`with_limits`]).
+fn limits_of(config: &Config, supervision: &SupervisorConfig) -> Limits {
+    let l = &config.limits;
+    let s = supervision;
+    let milli = |bits: i64| q32_to_milli(bits).clamp(0, i32::from(u16::MAX)) as u16;
+    Limits {
+        torque_margin_permille: milli(l.torque_margin.to_bits()),
+        current_ma: milli(l.max_current_a.to_bits()),
+        motor_torque_unm: sat_u32(i64::from(q32_to_micro(l.max_motor_torque.to_bits()))),
+        duty_permille: l.max_duty.unsigned_abs(),
+        position_min_urad: q32_to_micro(s.position_min.to_bits()),
+        position_max_urad: q32_to_micro(s.position_max.to_bits()),
     }
 }
 
@@ -340,16 +423,20 @@ impl Actuator {
 fn refused(e: ServoError) -> ErrorCode {
     match e {
         ServoError::Faulted => ErrorCode::NotAllowed,
-        ServoError::Control(_) | ServoError::Supervisor(_) => ErrorCode::OutOfRange,
+        ServoError::Control(_) | ServoError::Supervisor(_) | ServoError::Impedance(_) => {
+            ErrorCode::OutOfRange
+        }
     }
 }
 
-/// The command task's state: the design and the configuration in force.
-#[derive(Clone, Debug)]
+/// The command task's state: the design, the configuration in force and the settings
+/// store ([`store`]).
+#[derive(Debug)]
 pub struct Service {
     design: Design,
     config: Config,
     supervision: SupervisorConfig,
+    settings: store::Settings,
 }
 
 impl Service {
@@ -361,6 +448,7 @@ impl Service {
             design,
             config,
             supervision,
+            settings: store::Settings::new(config, supervision),
         }
     }
 
@@ -477,16 +565,14 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
 
     fn set_clutch_length(&mut self, length_um: u32) -> Result<(), ErrorCode> {
         let mut config = self.service.config;
-        config.clutch = ClutchSetting::Length(Length::from_bits(milli_to_q32(length_um.into())));
+        config.clutch = clutch_length(length_um);
         self.reconfigure(config, self.service.supervision)
             .map(|_| ())
     }
 
     fn set_stiffness(&mut self, stiffness_mnm_per_rad: u32) -> Result<u32, ErrorCode> {
         let mut config = self.service.config;
-        // mN·m/rad = 1000 µN·m/rad.
-        let k = Stiffness::from_micro(i64::from(stiffness_mnm_per_rad) * 1_000);
-        config.clutch = ClutchSetting::Stiffness(k);
+        config.clutch = clutch_stiffness(stiffness_mnm_per_rad);
         self.reconfigure(config, self.service.supervision)
     }
 
@@ -521,6 +607,10 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
         })
     }
 
+    fn impedance(&mut self, target: i32, k: u32, d: u32, torque: i32) -> Result<(), ErrorCode> {
+        impedance::apply(self, target, k, d, torque)
+    }
+
     fn hold(&mut self) -> Result<(), ErrorCode> {
         self.actuator.lock(|a| {
             if a.servo.state() == ServoState::Faulted {
@@ -532,28 +622,14 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
 
     fn set_gains(&mut self, gains: Option<Gains>) -> Result<(), ErrorCode> {
         let mut config = self.service.config;
-        config.gains.gains = gains.map(|g| PidGains {
-            kp: I32F32::from_bits(milli_to_q32(i64::try_from(g.kp).unwrap_or(i64::MAX))),
-            ki: I32F32::from_bits(milli_to_q32(i64::try_from(g.ki).unwrap_or(i64::MAX))),
-            kd: I32F32::from_bits(milli_to_q32(i64::try_from(g.kd).unwrap_or(i64::MAX))),
-        });
+        config.gains.gains = gains.map(pid_gains);
         self.reconfigure(config, self.service.supervision)
             .map(|_| ())
     }
 
     fn set_limits(&mut self, limits: &Limits) -> Result<(), ErrorCode> {
-        let mut config = self.service.config;
-        let mut supervision = self.service.supervision;
-        let current = I32F32::from_bits(milli_to_q32(limits.current_ma.into()));
-        config.limits = model::control::Limits {
-            torque_margin: Ratio::from_bits(milli_to_q32(limits.torque_margin_permille.into())),
-            max_current_a: current,
-            max_motor_torque: Torque::from_bits(micro_to_q32(limits.motor_torque_unm.into())),
-            max_duty: i16::try_from(limits.duty_permille).map_err(|_| ErrorCode::OutOfRange)?,
-        };
-        supervision.trip_current_a = current.saturating_add(TRIP_ABOVE_LIMIT_A);
-        supervision.position_min = Angle::from_bits(micro_to_q32(limits.position_min_urad.into()));
-        supervision.position_max = Angle::from_bits(micro_to_q32(limits.position_max_urad.into()));
+        let (config, supervision) =
+            with_limits(self.service.config, self.service.supervision, limits)?;
         self.reconfigure(config, supervision).map(|_| ())
     }
 
@@ -579,21 +655,30 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
     }
 
     fn limits(&mut self) -> Limits {
-        let l = &self.service.config.limits;
-        let s = &self.service.supervision;
-        let milli = |bits: i64| q32_to_milli(bits).clamp(0, i32::from(u16::MAX)) as u16;
-        Limits {
-            torque_margin_permille: milli(l.torque_margin.to_bits()),
-            current_ma: milli(l.max_current_a.to_bits()),
-            motor_torque_unm: sat_u32(i64::from(q32_to_micro(l.max_motor_torque.to_bits()))),
-            duty_permille: l.max_duty.unsigned_abs(),
-            position_min_urad: q32_to_micro(s.position_min.to_bits()),
-            position_max_urad: q32_to_micro(s.position_max.to_bits()),
-        }
+        limits_of(&self.service.config, &self.service.supervision)
     }
 
     fn status(&mut self) -> Status {
-        self.actuator.lock(|a| a.status())
+        let differs = self.differs_from_stored();
+        let mut status = self.actuator.lock(|a| a.status());
+        status.differs_from_stored = differs;
+        status
+    }
+
+    fn save(&mut self) -> Result<(), ErrorCode> {
+        self.save_settings()
+    }
+
+    fn load(&mut self) -> Result<(), ErrorCode> {
+        self.load_settings().map(|_| ())
+    }
+
+    fn factory_reset(&mut self) -> Result<(), ErrorCode> {
+        self.reset_settings()
+    }
+
+    fn faults_log(&mut self, index: u8) -> Result<(u8, Option<LoggedFault>), ErrorCode> {
+        self.logged_fault(index)
     }
 
     fn raw_sensors(&mut self) -> Result<protocol::RawSensors, ErrorCode> {

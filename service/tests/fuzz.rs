@@ -89,6 +89,26 @@ fn request() -> impl Strategy<Value = Request> {
         limits.prop_map(Request::SetLimits),
         near_limits.prop_map(Request::SetLimits),
         any::<u16>().prop_map(|rate_hz| Request::StreamTelemetry { rate_hz }),
+        (any::<i32>(), any::<u32>(), any::<u32>(), any::<i32>()).prop_map(|(t, k, d, f)| {
+            Request::Impedance {
+                target_urad: t,
+                stiffness_mnm_per_rad: k,
+                damping_unms_per_rad: d,
+                torque_unm: f,
+            }
+        }),
+        (
+            -3_000_000i32..3_000_000,
+            0u32..8_000_000,
+            0u32..110_000_000,
+            -110_000_000i32..110_000_000
+        )
+            .prop_map(|(t, k, d, f)| Request::Impedance {
+                target_urad: t,
+                stiffness_mnm_per_rad: k,
+                damping_unms_per_rad: d,
+                torque_unm: f,
+            }),
     ]
 }
 

@@ -163,3 +163,5 @@ pub const PAGE_SIZE: usize = 16 * 1024;
 pub const WORD_SIZE: usize = 4;
 /// Erase pages of the store on every board.
 pub const PAGES: usize = 2;
+/// Longest path of the emulated boards' flash file (the firmware's `--flash`), bytes.
+pub const FLASH_FILE_PATH_MAX: usize = 160;

@@ -127,6 +127,12 @@ impl<const PAGES: usize> RamFlash<PAGES> {
         self.pages.as_flattened()
     }
 
+    /// The contents to fill in place with a snapshot (a board reading its host file at
+    /// boot without a second 32 KiB buffer); not a flash operation: nothing is counted.
+    pub fn contents_mut(&mut self) -> &mut [u8] {
+        self.pages.as_flattened_mut()
+    }
+
     /// Replaces the contents with a snapshot (power and counters unchanged).
     ///
     /// # Errors

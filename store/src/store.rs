@@ -325,6 +325,13 @@ impl<F: NorFlash> Store<F> {
         boot
     }
 
+    /// Re-reads the fault log alone (the record set in force is left as it is).
+    pub fn fault_log(&mut self) -> FaultLog {
+        let mut boot = Boot::default();
+        self.load_faults(&mut boot);
+        boot.faults
+    }
+
     fn load_faults(&mut self, boot: &mut Boot) {
         let mut slots: [Option<Result<FaultEntry, Rejection>>; FAULT_LOG_LEN] =
             [None; FAULT_LOG_LEN];

@@ -1,6 +1,6 @@
 //! `cargo xtask`: set-up, build, run and test automation for vsa.
 //!
-//! - `cargo xtask run [--board qemu-m4|qemu-m3] [--scenario NAME]`: the firmware on an
+//! - `cargo xtask run [--board qemu-m4|qemu-m3] [--scenario NAME] [--flash FILE]`: the firmware on an
 //!   emulated board running a scenario (default: the step sweep), its defmt log decoded,
 //!   and the host simulation's hash of the same scenario for comparison.
 //! - `cargo xtask test`: formatting, clippy (host and every board), host tests, release
@@ -13,10 +13,12 @@ mod board;
 mod checks;
 mod cmd;
 mod defmt_log;
+mod dynamixel;
 mod e2e;
 mod fail_safe;
 mod firmware;
 mod flash;
+mod persistence;
 mod qemu;
 mod results;
 mod scenarios;
@@ -60,12 +62,24 @@ enum Task {
         /// icount sleep=off defect: 500 ticks per emulated second).
         #[arg(long, value_parser = ["spin", "wfi"], default_value = "spin")]
         idle: String,
+        /// Host file holding the emulated board's flash (its settings store: the boot log
+        /// shows what is stored; latched faults go to its fault log); created if absent.
+        /// Two runs with one file are a power cycle.
+        #[arg(long, value_name = "FILE")]
+        flash: Option<std::path::PathBuf>,
     },
     /// Run every check: fmt, clippy, host tests, firmware builds, emulated self-tests.
     Test,
     /// Only the host-link end-to-end test (`cargo xtask test` runs it too): an emulated
     /// board serving the protocol, driven through the client library.
     E2e {
+        /// Emulated board.
+        #[arg(long, value_enum, default_value = "qemu-m4")]
+        board: Board,
+    },
+    /// Only the Dynamixel check (`cargo xtask test` runs it too): three emulated boards on
+    /// the bus of `vsa serve-qemu --bus`, checked with ROBOTIS' dynamixel-sdk.
+    Dynamixel {
         /// Emulated board.
         #[arg(long, value_enum, default_value = "qemu-m4")]
         board: Board,
@@ -79,6 +93,14 @@ enum Task {
         elf: PathBuf,
         /// The raw defmt bytes.
         log: PathBuf,
+    },
+    /// The settings store on an emulated board: save and power cycle, power cuts in every
+    /// word write of a save and of a factory reset, 1 000 saves (`VSA_PERSISTENCE_CUTS=N`
+    /// sweeps every N-th cut, `VSA_PERSISTENCE_SAVES=N` makes N saves).
+    Persistence {
+        /// Emulated board.
+        #[arg(long, value_enum, default_value = "qemu-m4")]
+        board: Board,
     },
     /// Instruction counts per call (fixed point vs f32), footprint and stack of each board.
     Bench,
@@ -111,6 +133,7 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             scenario,
             seconds,
             idle,
+            flash,
         } => {
             anyhow::ensure!(
                 board.qemu_machine().is_some(),
@@ -139,6 +162,11 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             if let Some(s) = seconds {
                 args.extend(["--seconds".to_owned(), s.to_string()]);
             }
+            if let Some(f) = &flash {
+                let f =
+                    client::qemu::flash_file_arg(f).map_err(|e| anyhow::anyhow!("--flash {e}"))?;
+                args.extend(["--flash".to_owned(), f]);
+            }
             let (code, outcome) = emulate(board, &elf, &args, test::wall_limit(60))?;
             scenarios::print_host_comparison(id, &outcome)?;
             Ok(code)
@@ -154,6 +182,22 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             setup::ensure_qemu()?;
             let elf = firmware::build(board)?;
             let r = e2e::run(board, &elf)?;
+            println!("{}: {r}", board.feature());
+            Ok(ExitCode::SUCCESS)
+        }
+        Task::Persistence { board } => {
+            setup::ensure_targets()?;
+            setup::ensure_qemu()?;
+            let elf = firmware::build(board)?;
+            let r = persistence::run(board, &elf)?;
+            println!("{}: {r}", board.feature());
+            Ok(ExitCode::SUCCESS)
+        }
+        Task::Dynamixel { board } => {
+            setup::ensure_targets()?;
+            setup::ensure_qemu()?;
+            let elf = firmware::build(board)?;
+            let r = dynamixel::run(board, &elf)?;
             println!("{}: {r}", board.feature());
             Ok(ExitCode::SUCCESS)
         }

@@ -158,6 +158,12 @@ pub fn run() -> Result<bool> {
         tally.record(&format!("vsa sensors on {}", board.feature()), result);
     }
 
+    for (board, elf) in elfs.iter().filter(|(b, _)| b.qemu_machine().is_some()) {
+        let result = crate::dynamixel::run(*board, elf)
+            .map(|r| println!("[{} dynamixel] {r}", board.feature()));
+        tally.record(&format!("dynamixel-sdk on {}", board.feature()), result);
+    }
+
     if !tally.failures.is_empty() {
         println!("xtask test: failed: {}", tally.failures.join(", "));
     }

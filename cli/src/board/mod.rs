@@ -4,6 +4,9 @@
 //! Every argument is parsed and range-checked before the connection is made (bad input
 //! exits with 2 and sends nothing); a refusal, a timeout or a lost connection exits with 1.
 
+pub mod bus;
+mod config;
+mod impedance;
 mod quantities;
 pub mod sensors;
 pub mod serve;
@@ -93,6 +96,16 @@ pub struct ConnectArgs {
         help_heading = "Board connection"
     )]
     pub qemu_load: Option<String>,
+    /// Host file holding the emulated board's flash (its stored settings and fault log):
+    /// read at boot, written after every store operation; created if absent. Without it
+    /// the emulated store lives in RAM and is lost at exit
+    #[arg(
+        long,
+        global = true,
+        value_name = "FILE",
+        help_heading = "Board connection"
+    )]
+    pub qemu_flash: Option<PathBuf>,
     /// Reply timeout, e.g. 2s [default: 1s]
     #[arg(
         long,
@@ -115,6 +128,7 @@ impl ConnectArgs {
             (self.elf.is_some(), "--elf"),
             (self.qemu_log.is_some(), "--qemu-log"),
             (self.qemu_load.is_some(), "--qemu-load"),
+            (self.qemu_flash.is_some(), "--qemu-flash"),
             (self.timeout.is_some(), "--timeout"),
         ]
         .into_iter()
@@ -154,6 +168,7 @@ impl ConnectArgs {
                 (self.elf.is_some(), "--elf"),
                 (self.qemu_log.is_some(), "--qemu-log"),
                 (self.qemu_load.is_some(), "--qemu-load"),
+                (self.qemu_flash.is_some(), "--qemu-flash"),
             ] {
                 if given {
                     return Err(CliError::usage(name, "only applies to --qemu"));
@@ -193,11 +208,18 @@ impl ConnectArgs {
             Some(t) => quantities::torque_mnm("--qemu-load", t)?,
             None => 0,
         };
+        let flash = match &self.qemu_flash {
+            Some(f) => {
+                Some(qemu::flash_file_arg(f).map_err(|e| CliError::usage("--qemu-flash", e))?)
+            }
+            None => None,
+        };
         Ok(QemuTarget {
             board,
             elf: self.elf.clone(),
             log: self.qemu_log.clone(),
             load_mnm,
+            flash,
         })
     }
 
@@ -218,6 +240,8 @@ pub struct QemuTarget {
     log: Option<PathBuf>,
     /// `--load-mnm` of the served firmware, mN·m.
     load_mnm: i32,
+    /// `--flash` of the served firmware.
+    flash: Option<String>,
 }
 
 impl QemuTarget {
@@ -262,11 +286,14 @@ impl QemuTarget {
     pub fn start(&self) -> CliResult<(Adopted, Client)> {
         let elf = self.elf()?;
         let sink = self.sink()?;
-        let firmware_args = if self.load_mnm == 0 {
+        let mut firmware_args = if self.load_mnm == 0 {
             Vec::new()
         } else {
             vec!["--load-mnm".to_owned(), self.load_mnm.to_string()]
         };
+        if let Some(f) = &self.flash {
+            firmware_args.extend(["--flash".to_owned(), f.clone()]);
+        }
         QemuBoard::start(self.board, &elf, &firmware_args, sink)
             .map(|(board, client)| (adopt(board), client))
             .map_err(|e| CliError::runtime(e.to_string()))
@@ -449,6 +476,9 @@ pub enum BoardCommand {
     },
     /// Stop any motion and hold the current reference
     Hold,
+    /// Hold an angle as a spring-damper softer than the clutch setting, e.g.
+    /// `impedance 0.3rad --stiffness 20Nm/rad --damping 0.2Nms/rad [--torque 0.1Nm]`
+    Impedance(impedance::ImpedanceArgs),
     /// Explicit PID gains (`--kp 800 --ki 2000 --kd 20`), or `--auto` for the scheduled ones
     Gains(GainsArgs),
     /// Live limits and the position window; options not given take their defaults
@@ -461,6 +491,11 @@ pub enum BoardCommand {
     },
     /// Record telemetry: samples, gaps and drops; optionally to a CSV in SI units
     Record(RecordArgs),
+    /// The board's stored configuration: save, load, show, reset (factory reset)
+    #[command(subcommand)]
+    Config(config::ConfigCommand),
+    /// The faults latched now, or with --log the fault log kept in flash
+    Faults(config::FaultsArgs),
 }
 
 /// Arguments of `gains`.
@@ -537,6 +572,7 @@ enum Action {
         frequency_mhz: u32,
     },
     Hold,
+    Impedance(impedance::Plan),
     Gains(Option<Gains>),
     Limits(Limits),
     Wait(Duration),
@@ -545,6 +581,8 @@ enum Action {
         rate: u16,
         csv: Option<PathBuf>,
     },
+    Config(config::ConfigCommand),
+    Faults(config::FaultsArgs),
 }
 
 /// Checks a command's arguments (errors name the command and the argument).
@@ -572,6 +610,9 @@ fn plan(cmd: &BoardCommand) -> CliResult<Action> {
             frequency_mhz: quantities::frequency_mhz("sine --frequency", frequency)?,
         },
         BoardCommand::Hold => Action::Hold,
+        BoardCommand::Config(c) => Action::Config(*c),
+        BoardCommand::Faults(f) => Action::Faults(*f),
+        BoardCommand::Impedance(a) => Action::Impedance(impedance::plan(a)?),
         BoardCommand::Gains(g) => Action::Gains(plan_gains(g)?),
         BoardCommand::Limits(l) => Action::Limits(plan_limits(l)?),
         BoardCommand::Wait { duration } => {
@@ -741,6 +782,9 @@ fn exec(action: &Action, s: &mut Session) -> CliResult<()> {
             String::new()
         }),
         Action::Record { span, rate, csv } => return record(s, *span, *rate, csv.as_ref()),
+        Action::Config(cmd) => config::config(c, *cmd),
+        Action::Faults(args) => config::faults(c, *args),
+        Action::Impedance(p) => return impedance::run(s, p),
     };
     match r {
         Ok(text) => {
@@ -977,6 +1021,10 @@ fn status_text(st: &Status) -> String {
             },
         ),
         ("protocol errors", st.protocol_errors.to_string()),
+        (
+            "stored config",
+            config::stored_line(st.differs_from_stored).to_string(),
+        ),
     ];
     let mut s = String::new();
     for (k, v) in rows {

@@ -4,7 +4,8 @@
 use std::time::Duration;
 
 use client::protocol::{
-    CLUTCH_MAX_UM, CLUTCH_MIN_UM, CURRENT_LIMIT_MAX_MA, MOTOR_TORQUE_LIMIT_MAX_UNM,
+    CLUTCH_MAX_UM, CLUTCH_MIN_UM, CURRENT_LIMIT_MAX_MA, IMPEDANCE_DAMPING_MAX_UNMS_PER_RAD,
+    IMPEDANCE_STIFFNESS_MIN_MNM_PER_RAD, IMPEDANCE_TORQUE_MAX_UNM, MOTOR_TORQUE_LIMIT_MAX_UNM,
     MOVE_DURATION_MAX_MS, MOVE_DURATION_MIN_MS, SINE_AMPLITUDE_MAX_URAD, SINE_FREQUENCY_MAX_MHZ,
     SINE_FREQUENCY_MIN_MHZ, TARGET_MAX_URAD, TELEMETRY_RATE_MAX_HZ, TELEMETRY_RATE_MIN_HZ,
 };
@@ -147,6 +148,25 @@ pub fn length_um(arg: &str, s: &str) -> CliResult<u32> {
 /// A joint stiffness in mN·m/rad, > 0.
 pub fn stiffness_mnm_per_rad(arg: &str, s: &str) -> CliResult<u32> {
     scaled(arg, s, Kind::Stiffness, 3, 1, i64::from(u32::MAX)).map(to_u32)
+}
+
+/// A virtual stiffness in mN·m/rad, ≥ 0.1 N·m/rad (the upper bound, the joint's k at the
+/// clutch setting, is the board's check).
+pub fn virtual_stiffness_mnm_per_rad(arg: &str, s: &str) -> CliResult<u32> {
+    let lo = i64::from(IMPEDANCE_STIFFNESS_MIN_MNM_PER_RAD);
+    scaled(arg, s, Kind::Stiffness, 3, lo, i64::from(u32::MAX)).map(to_u32)
+}
+
+/// A virtual damping in µN·m·s/rad, 0–100 N·m·s/rad.
+pub fn damping_unms_per_rad(arg: &str, s: &str) -> CliResult<u32> {
+    let hi = i64::from(IMPEDANCE_DAMPING_MAX_UNMS_PER_RAD);
+    scaled(arg, s, Kind::Damping, 6, 0, hi).map(to_u32)
+}
+
+/// A feed-forward torque in µN·m, |·| ≤ 100 N·m.
+pub fn feed_forward_unm(arg: &str, s: &str) -> CliResult<i32> {
+    let max = i64::from(IMPEDANCE_TORQUE_MAX_UNM);
+    scaled(arg, s, Kind::Torque, 6, -max, max).map(to_i32)
 }
 
 /// A current limit in mA, 1 mA – 10 A.

@@ -74,6 +74,13 @@ pub struct ServeArgs {
     /// Address to accept `--tcp` clients on (port 0: any free port, printed)
     #[arg(long, value_name = "HOST:PORT", default_value = "127.0.0.1:0")]
     pub listen: String,
+    /// Serve a Dynamixel bus instead: one emulated actuator per --ids on one simulated
+    /// half-duplex bus, a pseudo-terminal linked at PATH (see `board::bus`)
+    #[arg(long, value_name = "PATH")]
+    pub bus: Option<std::path::PathBuf>,
+    /// Dynamixel IDs of the actuators on --bus, comma separated
+    #[arg(long, value_name = "ID,ID,…", default_value = "1", requires = "bus")]
+    pub ids: String,
 }
 
 fn io_err(what: &str) -> impl Fn(std::io::Error) -> CliError + '_ {
@@ -93,6 +100,9 @@ pub fn run(a: &ServeArgs, conn: &ConnectArgs) -> CliResult<()> {
                 "serve-qemu always starts an emulated board (use --board, --elf, --qemu-log)",
             ));
         }
+    }
+    if let Some(path) = &a.bus {
+        return super::bus::run(path, &super::bus::parse_ids(&a.ids)?, conn);
     }
     let listener = TcpListener::bind(&a.listen)
         .map_err(|e| CliError::usage("--listen", format!("{}: {e}", a.listen)))?;

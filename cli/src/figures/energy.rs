@@ -99,6 +99,9 @@ pub struct Motion {
     pub frequency_hz: f64,
     /// Constant load torque on the link, N·m.
     pub load_nm: f64,
+    /// Gravity arm m·g·l, N·m: the link hangs at the motion's centre (0 rad) and gravity
+    /// pulls it back with −m·g·l·sin θ (`plant::harness::Scenario::gravity_nm`).
+    pub gravity_nm: f64,
     /// Whole cycles averaged after [`SKIP_TICKS`].
     pub cycles: u32,
 }
@@ -110,6 +113,7 @@ pub const SERIES: [Motion; 4] = [
         amplitude_rad: AMPLITUDE_RAD,
         frequency_hz: 1.0,
         load_nm: LOAD_NM,
+        gravity_nm: 0.0,
         cycles: 2,
     },
     Motion {
@@ -117,6 +121,7 @@ pub const SERIES: [Motion; 4] = [
         amplitude_rad: AMPLITUDE_RAD,
         frequency_hz: 3.0,
         load_nm: LOAD_NM,
+        gravity_nm: 0.0,
         cycles: 6,
     },
     Motion {
@@ -124,6 +129,7 @@ pub const SERIES: [Motion; 4] = [
         amplitude_rad: AMPLITUDE_RAD,
         frequency_hz: 1.0,
         load_nm: 0.0,
+        gravity_nm: 0.0,
         cycles: 2,
     },
     Motion {
@@ -131,6 +137,7 @@ pub const SERIES: [Motion; 4] = [
         amplitude_rad: AMPLITUDE_RAD,
         frequency_hz: 3.0,
         load_nm: 0.0,
+        gravity_nm: 0.0,
         cycles: 6,
     },
 ];
@@ -242,6 +249,7 @@ pub fn energy_of_commands(
     let mut sc = Scenario::new(cfg, cmd);
     sc.design = *d;
     sc.load_nm = m.load_nm as f32;
+    sc.gravity_nm = m.gravity_nm as f32;
     sc.settle_ticks = SETTLE_TICKS;
     sc.run_ticks = SKIP_TICKS + window;
     sc.rms_from_ticks = SKIP_TICKS;

@@ -75,16 +75,18 @@ mod app {
         queue: Queue<LogItem, LOG_QUEUE> = Queue::new(),
         rx_queue: Queue<u8, RX_QUEUE> = Queue::new(),
         telemetry_queue: Queue<Sample, TELEMETRY_QUEUE> = Queue::new(),
+        settings_flash: board::SettingsFlash = board::SETTINGS_FLASH,
+        settings: Option<board::SettingsStore> = None,
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         firmware::stack::paint();
         let mut core = cx.core;
         let run: RunConfig = Selected::run_config();
+        let dxl_id = run.dxl_id;
         let parts = Selected::init(cx.device, &run);
         let (log_tx, log_rx) = cx.local.queue.split();
         let (rx_tx, rx_rx) = cx.local.rx_queue.split();
         let (telemetry_tx, telemetry_rx) = cx.local.telemetry_queue.split();
-        timing::start_systick(&mut core.SYST, board::SYSCLK_HZ);
         defmt::info!(
             "vsa firmware {=str} on {=str}: sysclk {=u32} Hz, control loop {=u32} Hz, idle {}",
             env!("CARGO_PKG_VERSION"),
@@ -94,13 +96,18 @@ mod app {
             run.idle,
         );
         defmt::info!(
-            "host link: USART2, protocol version {=u8}",
-            protocol::VERSION
+            "host link: USART2, protocol version {=u8}; Dynamixel ID {=u8}, Protocol 1.0",
+            protocol::VERSION,
+            run.dxl_id
         );
+        let mut actuator = Actuator::new(parts.servo);
+        let mut service = parts.service;
+        let storage = board::open_settings(cx.local.settings_flash, cx.local.settings, &run);
+        firmware::settings::boot(&mut service, &mut actuator, storage, run.serves());
+        // Last: loading and preparing the stored settings takes longer than a period.
+        timing::start_systick(&mut core.SYST, board::SYSCLK_HZ);
         (
-            Shared {
-                actuator: Actuator::new(parts.servo),
-            },
+            Shared { actuator },
             Local {
                 control: ControlLoop::new(parts.io, parts.hooks),
                 accounting: TickAccounting::new(),
@@ -111,7 +118,10 @@ mod app {
                 dropped: 0,
                 idle_mode: run.idle,
                 reporter: Reporter::new(run),
-                link: Link::new(parts.service, rx_rx, telemetry_rx, parts.serial_tx),
+                link: firmware::bus::serve(
+                    Link::new(service, rx_rx, telemetry_rx, parts.serial_tx),
+                    dxl_id,
+                ),
                 serial_rx: parts.serial_rx,
                 rx_tx,
                 telemetry_tx,
@@ -134,9 +144,10 @@ mod app {
             .shared
             .actuator
             .lock(|actuator| control.tick(entry, actuator, telemetry_tx));
-        if result.sampled {
-            NVIC::pend(board::pac::Interrupt::EXTI1);
-        }
+        // Every tick, not only when a telemetry sample was queued or a fault latched: the
+        // link task also notices an idle Dynamixel line (`firmware::bus`) and logs faults
+        // to the stored fault log.
+        NVIC::pend(board::pac::Interrupt::EXTI1);
         timing::publish_tick(tick);
 
         let tx = cx.local.log_tx;

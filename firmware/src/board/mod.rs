@@ -13,8 +13,12 @@
 //! clock on TIM2 ([`IndependentClock`], the tick accounting's independent time base) and
 //! the idle wait.
 
+#[cfg(feature = "qemu")]
+mod flash_file;
 #[cfg(feature = "nucleo-f446re")]
 mod nucleo;
+#[cfg(feature = "nucleo-f446re")]
+mod nucleo_flash;
 #[cfg(feature = "qemu")]
 mod qemu;
 #[cfg(feature = "qemu")]
@@ -23,8 +27,14 @@ pub mod serial;
 #[cfg(feature = "qemu")]
 mod sim;
 
+#[cfg(feature = "qemu")]
+pub use flash_file::{
+    open as open_settings, SettingsFlash, SettingsStore, POWER_CUT_EXIT, SETTINGS_FLASH,
+};
 #[cfg(feature = "nucleo-f446re")]
 pub use nucleo::{force_bridge_off, halt_after_fault, pac, Nucleo as Selected};
+#[cfg(feature = "nucleo-f446re")]
+pub use nucleo_flash::{open as open_settings, SettingsFlash, SettingsStore, SETTINGS_FLASH};
 #[cfg(feature = "qemu")]
 pub use qemu::{halt_after_fault, pac, Qemu as Selected, USART_BRR};
 pub use serial::{Serial, SerialRx, SerialTx};

@@ -35,6 +35,7 @@ pub mod config;
 pub mod controller;
 pub mod error;
 pub mod gain;
+pub mod impedance;
 pub mod schedule;
 pub mod sine;
 pub mod trajectory;
@@ -45,6 +46,7 @@ pub use config::{ClutchSetting, Config, GainOverride, Limits, MotorParams, PidGa
 pub use controller::{Controller, Flags, Measurements, Output};
 pub use error::ControlError;
 pub use gain::Gain;
+pub use impedance::{Impedance, ImpedanceCommand, ImpedanceError};
 pub use schedule::{
     Schedule, BRAKE_FRACTION, BW_MAX, BW_RATIO, DERIV_FILTER_N, FREE_PLAY_SWITCH_NM,
 };

@@ -6,7 +6,7 @@ use proptest::prelude::*;
 use proptest::test_runner::Config;
 use protocol::{
     Decoder, Device, ErrorCode, FaultCode, FaultRecord, FaultSet, Frame, Gains, Handler,
-    LimitFlags, Limits, Reply, Request, State, Status, TelemetrySample, CLUTCH_MAX_UM,
+    LimitFlags, Limits, LoggedFault, Reply, Request, State, Status, TelemetrySample, CLUTCH_MAX_UM,
     CLUTCH_MIN_UM, KD_MAX, KI_MAX, KP_MAX, MOVE_DURATION_MAX_MS, SINE_AMPLITUDE_MAX_URAD,
     SINE_FREQUENCY_MAX_MHZ, SINE_FREQUENCY_MIN_MHZ, TARGET_MAX_URAD,
 };
@@ -159,6 +159,22 @@ pub fn request() -> impl Strategy<Value = Request> {
                 duration_ms
             }
         ),
+        Just(Request::Save),
+        Just(Request::Load),
+        Just(Request::FactoryReset),
+        any::<u8>().prop_map(|index| Request::FaultsLog { index }),
+        (
+            angle(),
+            edge_u32(0, 10_000_000),
+            edge_u32(0, 200_000_000),
+            angle()
+        )
+            .prop_map(|(target_urad, k, d, t)| Request::Impedance {
+                target_urad,
+                stiffness_mnm_per_rad: k,
+                damping_unms_per_rad: d,
+                torque_unm: t.saturating_mul(64),
+            }),
     ]
 }
 
@@ -185,6 +201,11 @@ pub fn request_index(r: &Request) -> u32 {
         Request::GetLimits => 17,
         Request::GetSensors => 18,
         Request::Nudge { .. } => 19,
+        Request::Save => 20,
+        Request::Load => 21,
+        Request::FactoryReset => 22,
+        Request::FaultsLog { .. } => 23,
+        Request::Impedance { .. } => 24,
     }
 }
 
@@ -199,6 +220,7 @@ pub fn reply_index(r: &Reply) -> u32 {
         Reply::Limits(_) => 5,
         Reply::FaultPersists(_) => 6,
         Reply::Sensors(_) => 7,
+        Reply::FaultsLog { .. } => 8,
     }
 }
 
@@ -211,6 +233,7 @@ pub fn error_code() -> impl Strategy<Value = ErrorCode> {
         ErrorCode::NotAllowed,
         ErrorCode::Busy,
         ErrorCode::UnsupportedVersion,
+        ErrorCode::Storage,
     ])
 }
 
@@ -238,10 +261,14 @@ pub fn status() -> impl Strategy<Value = Status> {
             any::<u16>(),
             any::<u32>(),
             any::<u32>(),
+            any::<bool>(),
         ),
     )
         .prop_map(
-            |((state, faults, first, limits, clutch, k), (tick, moving, rate, dropped, errors))| {
+            |(
+                (state, faults, first, limits, clutch, k),
+                (tick, moving, rate, dropped, errors, differs),
+            )| {
                 Status {
                     state,
                     faults: FaultSet(faults),
@@ -254,6 +281,7 @@ pub fn status() -> impl Strategy<Value = Status> {
                     telemetry_rate_hz: rate,
                     telemetry_dropped: dropped,
                     protocol_errors: errors,
+                    differs_from_stored: differs,
                 }
             },
         )
@@ -315,6 +343,17 @@ pub fn reply() -> impl Strategy<Value = Reply> {
                     nudge_duty_permille: nudge,
                 })
             }),
+        (
+            any::<u8>(),
+            prop::option::of((any::<u32>(), fault_code(), any::<i32>(), any::<u32>()))
+        )
+            .prop_map(|(count, entry)| Reply::FaultsLog {
+                count,
+                entry: entry.map(|(seq, code, value, tick)| LoggedFault {
+                    seq,
+                    fault: FaultRecord { code, value, tick }
+                }),
+            }),
     ]
 }
 
@@ -342,6 +381,11 @@ pub enum Call {
     Status,
     RawSensors,
     Nudge(i16, u16),
+    Save,
+    Load,
+    FactoryReset,
+    FaultsLog(u8),
+    Impedance(i32, u32, u32, i32),
 }
 
 /// A device that records every call and keeps a little state, refusing like the
@@ -544,6 +588,25 @@ impl Device for MockDevice {
         self.limits
     }
 
+    fn impedance(
+        &mut self,
+        target_urad: i32,
+        stiffness_mnm_per_rad: u32,
+        damping_unms_per_rad: u32,
+        torque_unm: i32,
+    ) -> Result<(), ErrorCode> {
+        self.calls.push(Call::Impedance(
+            target_urad,
+            stiffness_mnm_per_rad,
+            damping_unms_per_rad,
+            torque_unm,
+        ));
+        if stiffness_mnm_per_rad > self.stiffness_mnm_per_rad {
+            return Err(ErrorCode::OutOfRange);
+        }
+        self.motion()
+    }
+
     fn persisting_fault(&mut self) -> Option<FaultRecord> {
         self.persisting
     }
@@ -577,7 +640,28 @@ impl Device for MockDevice {
             telemetry_dropped: 0,
             // The handler must overwrite this.
             protocol_errors: 0xDEAD,
+            differs_from_stored: false,
         }
+    }
+
+    fn save(&mut self) -> Result<(), ErrorCode> {
+        self.calls.push(Call::Save);
+        Ok(())
+    }
+
+    fn load(&mut self) -> Result<(), ErrorCode> {
+        self.calls.push(Call::Load);
+        Ok(())
+    }
+
+    fn factory_reset(&mut self) -> Result<(), ErrorCode> {
+        self.calls.push(Call::FactoryReset);
+        Ok(())
+    }
+
+    fn faults_log(&mut self, index: u8) -> Result<(u8, Option<LoggedFault>), ErrorCode> {
+        self.calls.push(Call::FaultsLog(index));
+        Ok((0, None))
     }
 }
 
@@ -615,6 +699,21 @@ pub fn expected_call(r: &Request) -> Option<Call> {
             duty_permille,
             duration_ms,
         } => Call::Nudge(duty_permille, duration_ms),
+        Request::Save => Call::Save,
+        Request::Load => Call::Load,
+        Request::FactoryReset => Call::FactoryReset,
+        Request::FaultsLog { index } => Call::FaultsLog(index),
+        Request::Impedance {
+            target_urad,
+            stiffness_mnm_per_rad,
+            damping_unms_per_rad,
+            torque_unm,
+        } => Call::Impedance(
+            target_urad,
+            stiffness_mnm_per_rad,
+            damping_unms_per_rad,
+            torque_unm,
+        ),
     })
 }
 

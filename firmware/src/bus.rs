@@ -1,0 +1,35 @@
+//! The Dynamixel bus on the host-link UART: the board answers Dynamixel packets (as an
+//! AX-12A in Protocol 1.0, as an X-series servo in 2.0) and our framed protocol on the same
+//! line (`service::line` tells them apart; `service::link` keeps the half-duplex rules).
+//!
+//! The link task is pended every control tick (besides every received byte), so that an
+//! idle line is noticed within a tick of [`IDLE_US`]. Nothing here touches the UART: the
+//! bytes come from the receive queue the board's receive path fills, whatever fills it.
+
+use dynamixel::Protocol;
+use service::dynamixel::Bus;
+use service::link::Link;
+
+/// No byte for this long, µs: a partial Dynamixel packet is abandoned and the next byte
+/// starts a new packet of either protocol. On the emulated boards bytes trickle in as
+/// QEMU's USART model takes them (about 1 ms apart), and a loaded host can hold QEMU's I/O
+/// thread back while the emulated core runs on: with 20 ms, 5 of 500 READs lost their
+/// packet's tail that way (measured on a 2-core host at a load of 10); on the real line a
+/// few character times.
+#[cfg(feature = "qemu")]
+pub const IDLE_US: u64 = 200_000;
+/// See above (the real board: 10 character times at 57 600 Bd, the slowest rate served).
+#[cfg(not(feature = "qemu"))]
+pub const IDLE_US: u64 = 2_000;
+
+/// The board's µs clock for the link task: [`crate::timing::uptime_us`] read in a
+/// critical section (the tick count and the SysTick counter from the same period).
+pub fn clock_us() -> u64 {
+    cortex_m::interrupt::free(|_| crate::timing::uptime_us())
+}
+
+/// `link` serving the Dynamixel bus too, as ID `id`, in Protocol 1.0 (the AX-12A's; the
+/// stored protocol setting replaces it once the store holds one).
+pub fn serve<'q, W: embedded_io::Write>(link: Link<'q, W>, id: u8) -> Link<'q, W> {
+    link.with_dynamixel(Bus::new(id, Protocol::V1), clock_us, IDLE_US)
+}

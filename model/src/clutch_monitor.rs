@@ -1,0 +1,235 @@
+//! The clutch monitor (docs/design.md §7, docs/calibration.md): the clutch is slid by
+//! hand, and a clutch longer than configured makes the beams softer *and* weaker
+//! (k ∝ 1/L³, τ_cap ∝ 1/L, eqs. 1–4) than the supervisor believes. Every tick, called by
+//! the supervisor:
+//!
+//! * an online estimate of the joint compliance 1/k from the measured deflection
+//!   φ (pot − encoder, beyond the free play on the torque's side) and the motor torque
+//!   τ = k_t·i − J_g·Δω_g/dt: least squares of φ on τ with exponential forgetting
+//!   (recursive least squares of one parameter, forgetting factor λ = 1 − 2⁻⁸, a time
+//!   constant of 256 ticks), kept as the two weighted sums Σλⁿτφ and Σλⁿτ² so that the
+//!   per-tick work is multiplies and shifts, no division. Regressing φ on τ (not τ on φ)
+//!   leaves the pot's coarse quantisation in the residual instead of biasing the slope.
+//! * the capacity the overload check uses: until the estimate confirms the configured
+//!   stiffness, the weakest one the clutch tolerance allows, τ_cap(L)·L/(L + ΔL);
+//!   confirmed (compliance within [`CONFIRM_RATIO`] of the configured one), τ_cap(L)·
+//!   [`CONFIRM_RATIO`]^(−1/3) (the longest clutch that compliance allows);
+//! * [`FaultCode::ClutchMismatch`](crate::supervisor::FaultCode::ClutchMismatch) when the
+//!   compliance stays above [`MISMATCH_RATIO`] × the configured one (k below 80 %: the
+//!   clutch about 8 % longer than configured) for 64 consecutive ticks.
+//!
+//! Evidence: a decision needs Σλⁿτ² ≥ (τ_ev)²·256, τ_ev the torque that deflects the
+//! configured beams by one pot count: the torque must have been large enough, for about
+//! the forgetting time, to move the pot. With a 0.29° pot that is the case at the soft
+//! settings only (L ≳ 4 mm on the paper's beams, docs/calibration.md); elsewhere the
+//! monitor stays undecided and the weak capacity stays in force.
+
+use crate::control::{Gain, Output, Schedule};
+use crate::sensors::POT_COUNT_Q32;
+
+/// Compliance ratio (estimated / configured) above which the clutch is declared longer
+/// than configured, Q16: 1.25 (k below 80 %).
+pub const MISMATCH_RATIO: i64 = 5 << 14;
+/// Compliance ratio below which the configured stiffness is confirmed, Q16: 1.1.
+pub const CONFIRM_RATIO: i64 = 72_090;
+/// Forgetting shift: λ = 1 − 2⁻⁸.
+const FORGET: u32 = 8;
+/// Low-pass shift of φ and τ before the regression (α = 1/16).
+const SMOOTH: u32 = 4;
+/// Bounds of the regression's samples: |τ| ≤ 4 N·m (Q12: 2¹⁴), |φ_e| ≤ 0.125 rad (Q16:
+/// 2¹³). With them |τ·φ| < 2²⁷ and τ² ≤ 2²⁸ fit an i32, the sums stay below 2³⁶
+/// (2⁸ samples' worth), s_tp·2²⁴ below 2⁶⁰ and a threshold (< 2²³) times s_tt below 2⁵⁹:
+/// plain i64 arithmetic, no overflow (the clamps make the bounds hold).
+const TAU_MAX_Q12: i32 = 1 << 14;
+const PHI_MAX_Q16: i32 = 1 << 13;
+/// Consecutive ticks the estimate must stay beyond the mismatch ratio (a violent
+/// transient, e.g. a raw step's impacts, is not evidence).
+const MISMATCH_TICKS: u16 = 64;
+
+/// What the monitor concluded so far.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ClutchState {
+    /// Not enough evidence: the weak capacity applies.
+    Unknown,
+    /// The configured stiffness is confirmed.
+    Confirmed,
+    /// Softer than configured beyond the tolerance.
+    Mismatch,
+}
+
+/// Constants derived from the schedule (configuration time).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ClutchLimits {
+    /// Configured compliance 1/k, rad per N·m × 2²⁸ (the regression's φ Q16 over τ Q12,
+    /// × 2²⁴), at most 2²³ (k ≥ 32 N·m/rad).
+    compliance_28: i64,
+    /// `MISMATCH_RATIO` and `CONFIRM_RATIO` × `compliance_28`.
+    mismatch_28: i64,
+    confirm_28: i64,
+    /// Free play φ_b, rad Q16.
+    free_play_q16: i32,
+    /// |τ| below which the beams may be anywhere in the free play, N·m Q16.
+    contact_q16: i32,
+    /// Least Σλⁿτ² for a decision, N·m² Q24.
+    evidence: i64,
+    /// Capacity while undecided and once confirmed, I32F32 N·m.
+    cap_weak: i64,
+    cap_confirmed: i64,
+    /// The controller's k_t (N·m per A) and J_g/dt (N·m per rad/s per tick).
+    kt: Gain,
+    jg_dt: Gain,
+}
+
+impl ClutchLimits {
+    /// For the schedule `sched` (τ_cap and k at the configured L) and a clutch that may
+    /// be up to `tolerance_mm` (I32F32 bits, ≥ 0) longer than configured.
+    #[must_use]
+    pub fn new(sched: &Schedule, tolerance_mm: i64) -> ClutchLimits {
+        let setting = sched.setting();
+        let cap = setting.torque_capacity().to_bits();
+        let len = setting.length().to_bits().max(1);
+        let tol = tolerance_mm.max(0);
+        // τ_cap ∝ 1/L (σ = τ·L·r/(n·R·I), eq. 2).
+        let cap_weak =
+            ((i128::from(cap) * i128::from(len)) / (i128::from(len) + i128::from(tol))) as i64;
+        // 1.1^(−1/3) = 0.96873, Q16 63486.
+        let cap_confirmed = if tol == 0 {
+            cap
+        } else {
+            ((i128::from(cap) * 63_486) >> 16) as i64
+        };
+        // k is I64F64 N·m/rad: 1/k × 2²⁸ = 2⁹²/k_bits.
+        let k_bits = sched.stiffness().to_bits().max(1);
+        let compliance_28 = ((1i128 << 92) / k_bits).clamp(1, 1 << 23) as i64;
+        // τ_ev (Q12) = one pot count / c = POT_COUNT_Q32·2⁸ / c₂₈; evidence τ_ev²·2^FORGET.
+        let tau_ev = (i128::from(POT_COUNT_Q32) << 8) / i128::from(compliance_28);
+        let evidence = (tau_ev * tau_ev * (1 << FORGET)).min(1 << 40) as i64;
+        ClutchLimits {
+            compliance_28,
+            mismatch_28: (compliance_28 * MISMATCH_RATIO) >> 16,
+            confirm_28: (compliance_28 * CONFIRM_RATIO) >> 16,
+            free_play_q16: (sched.free_play().to_bits() >> 16) as i32,
+            contact_q16: sched.contact_torque_q16.max(1 << 11),
+            evidence,
+            cap_weak: if tol == 0 { cap } else { cap_weak },
+            cap_confirmed,
+            kt: sched.kt,
+            jg_dt: sched.gear_inertia_per_dt,
+        }
+    }
+}
+
+/// The monitor's state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ClutchMonitor {
+    state: ClutchState,
+    phi_f: i32,
+    tau_f: i32,
+    w_prev: i32,
+    /// Σλⁿτ² (N·m² Q24) and Σλⁿτφ (N·m·rad Q28).
+    s_tt: i64,
+    s_tp: i64,
+    /// Consecutive ticks beyond the mismatch ratio.
+    beyond: u16,
+}
+
+impl Default for ClutchMonitor {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ClutchMonitor {
+    /// Undecided, no history.
+    #[must_use]
+    pub const fn new() -> ClutchMonitor {
+        ClutchMonitor {
+            state: ClutchState::Unknown,
+            phi_f: 0,
+            tau_f: 0,
+            w_prev: 0,
+            s_tt: 0,
+            s_tp: 0,
+            beyond: 0,
+        }
+    }
+
+    /// The conclusion so far.
+    #[must_use]
+    pub const fn state(&self) -> ClutchState {
+        self.state
+    }
+
+    /// The estimated compliance relative to the configured one, Q16 (`None` without
+    /// enough evidence). Divides: for reports, not the per-tick path.
+    #[must_use]
+    pub fn ratio_q16(&self, lim: &ClutchLimits) -> Option<i64> {
+        (self.s_tt >= lim.evidence && self.s_tt > 0).then(|| {
+            let num = i128::from(self.s_tp) << 40;
+            (num / (i128::from(self.s_tt) * i128::from(lim.compliance_28))) as i64
+        })
+    }
+
+    /// The capacity (I32F32 N·m) the overload check uses now.
+    #[must_use]
+    pub const fn capacity(&self, lim: &ClutchLimits) -> i64 {
+        match self.state {
+            ClutchState::Confirmed => lim.cap_confirmed,
+            _ => lim.cap_weak,
+        }
+    }
+
+    /// One tick: `phi_q32` the measured deflection θ_g − θ_l (rad, I32F32), `out` the
+    /// controller's output (current, gear velocity). Returns true while the mismatch
+    /// holds (from the tick it is found until the monitor is reset).
+    pub fn update(&mut self, phi_q32: i64, out: &Output, lim: &ClutchLimits) -> bool {
+        if self.state == ClutchState::Mismatch {
+            // A condition: it holds until the monitor is reset (a new configuration).
+            return true;
+        }
+        let i_q16 = (out.current.to_bits() >> 16) as i32;
+        let w_q16 = (out.gear_velocity.to_bits() >> 16) as i32;
+        let dw = w_q16.wrapping_sub(self.w_prev);
+        self.w_prev = w_q16;
+        let tau = lim.kt.apply(i_q16).saturating_sub(lim.jg_dt.apply(dw));
+        let phi = (phi_q32 >> 16).clamp(-(1 << 20), 1 << 20) as i32;
+        self.tau_f = self
+            .tau_f
+            .saturating_add(tau.saturating_sub(self.tau_f) >> SMOOTH);
+        self.phi_f = self
+            .phi_f
+            .saturating_add(phi.saturating_sub(self.phi_f) >> SMOOTH);
+        if self.tau_f.saturating_abs() < lim.contact_q16 {
+            return false;
+        }
+        // Deflection beyond the free play on the torque's side (eq. 5's dead zone).
+        let phi_e = if self.tau_f > 0 {
+            self.phi_f.saturating_sub(lim.free_play_q16)
+        } else {
+            self.phi_f.saturating_add(lim.free_play_q16)
+        };
+        let t = (self.tau_f >> 4).clamp(-TAU_MAX_Q12, TAU_MAX_Q12);
+        let p = phi_e.clamp(-PHI_MAX_Q16, PHI_MAX_Q16);
+        self.s_tt = self.s_tt - (self.s_tt >> FORGET) + i64::from(t * t);
+        self.s_tp = self.s_tp - (self.s_tp >> FORGET) + i64::from(t * p);
+        if self.s_tt < lim.evidence {
+            return false;
+        }
+        // c = s_tp/s_tt against r·c_cfg without dividing (bounds at `TAU_MAX_Q12`).
+        let lhs = self.s_tp << 24;
+        if lhs > lim.mismatch_28 * self.s_tt {
+            self.beyond = self.beyond.saturating_add(1);
+            if self.beyond >= MISMATCH_TICKS {
+                self.state = ClutchState::Mismatch;
+                return true;
+            }
+            return false;
+        }
+        self.beyond = 0;
+        if self.state == ClutchState::Unknown && lhs <= lim.confirm_28 * self.s_tt {
+            self.state = ClutchState::Confirmed;
+        }
+        false
+    }
+}

@@ -1,0 +1,166 @@
+//! The Dynamixel bus with ROBOTIS' own `dynamixel-sdk`: three emulated boards (IDs 1–3,
+//! each with a 0.3 N·m load) on the bus of `vsa serve-qemu --bus`, checked by
+//! `dynamixel/tests/sdk_check.py` in Protocol 1.0 (pings, every control-table default,
+//! broadcast torque enable, one SYNC_WRITE and the present positions within the
+//! controller's tolerance, the present load's direction under the load, the angle-limit,
+//! range and checksum error bits, 1 000 back-to-back READs) and Protocol 2.0 (the X-series
+//! table, broadcast ping, SYNC WRITE, SYNC READ, the error numbers).
+//!
+//! The SDK comes from PyPI into the virtual environment `target/venv` (made with
+//! `python3 -m venv`; when the `venv` module is missing and we are root with apt-get,
+//! `python3-venv` is installed the way `setup` installs QEMU: never removing a package).
+//!
+//! `DXL_LATENCY_MS` (default 1000) is the SDK's latency allowance: a status times out after
+//! twice that plus 2 ms. QEMU's emulated USART takes the host's bytes slowly on a loaded
+//! machine (about 1 kB/s at a load of 13 on 2 cores, see `e2e`), and a loaded host stalls
+//! the emulators now and then for most of a second: the SDK's 16 ms default does not
+//! survive that. `DXL_READS` (default 1000) sets the number of back-to-back
+//! 1.0 READs.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::Instant;
+
+use anyhow::{bail, ensure, Context, Result};
+
+use crate::board::Board;
+use crate::cmd::{cargo, run_status, target_dir, workspace_root};
+
+/// The emulated load on each board, mN·m (positive pushes the link positive, so the
+/// actuator holds it by pushing CW: the AX direction bit is set).
+const LOAD_MNM: i32 = 300;
+/// How far a present position may be from its goal, AX counts (0.29° each): the
+/// controller settles within an encoder count of the target (`e2e`).
+const TOLERANCE_COUNTS: u32 = 2;
+/// The clutch length the served boards start at, µm (`firmware::board::SERVED_CLUTCH_MM`).
+const CLUTCH_UM: u32 = 3_000;
+/// Back-to-back reads at return delay 0 and SYNC READs (each: 1.0 and 2.0 at delay 0).
+const SHORT_READS: u32 = 100;
+
+/// The venv's python, with `dynamixel_sdk` and `serial` importable: makes the venv and
+/// installs them when needed.
+pub fn ensure_sdk() -> Result<PathBuf> {
+    let venv = target_dir().join("venv");
+    let python = venv.join("bin").join("python");
+    if !python.exists() {
+        let made = Command::new("python3")
+            .args(["-m", "venv"])
+            .arg(&venv)
+            .status()
+            .context("running python3 (is Python 3 installed?)")?;
+        if !made.success() {
+            install_venv_package()?;
+            run_status(Command::new("python3").args(["-m", "venv"]).arg(&venv))
+                .context("python3 -m venv target/venv")?;
+        }
+    }
+    let has_sdk = Command::new(&python)
+        .args(["-c", "import dynamixel_sdk, serial"])
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !has_sdk {
+        eprintln!("xtask: installing dynamixel-sdk and pyserial into target/venv");
+        run_status(Command::new(venv.join("bin").join("pip")).args([
+            "install",
+            "--quiet",
+            "dynamixel-sdk",
+            "pyserial",
+        ]))
+        .context("pip install dynamixel-sdk pyserial")?;
+    }
+    Ok(python)
+}
+
+/// `python3-venv` with apt-get, as root, never removing a package (see `setup`).
+fn install_venv_package() -> Result<()> {
+    let install = "apt-get install -y --no-install-recommends --no-remove python3-venv";
+    let is_root = Command::new("id")
+        .arg("-u")
+        .output()
+        .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).trim() == "0");
+    if !is_root {
+        bail!("python3 -m venv failed; install the venv module with:\n    sudo {install}");
+    }
+    eprintln!("xtask: python3's venv module is missing; {install}");
+    run_status(Command::new("apt-get").arg("update")).context("apt-get update")?;
+    run_status(Command::new("sh").args(["-c", install])).context(install)
+}
+
+/// Kills the bus (and with it its QEMUs: `vsa` kills its boards on SIGTERM).
+struct Bus(Child);
+
+impl Drop for Bus {
+    fn drop(&mut self) {
+        let _ = Command::new("kill").arg(self.0.id().to_string()).status();
+        let _ = self.0.wait();
+    }
+}
+
+/// Runs the check on `board` with the firmware `elf`; returns the summary.
+pub fn run(board: Board, elf: &Path) -> Result<String> {
+    let python = ensure_sdk()?;
+    run_status(cargo().args(["build", "--quiet", "-p", "vsa-cli", "--bin", "vsa"]))
+        .context("building vsa")?;
+    let vsa = target_dir().join("debug").join("vsa");
+    let link = target_dir().join(format!("dxl-bus-{}", board.feature()));
+    let mut child = Command::new(&vsa)
+        .args(["serve-qemu", "--board", board.feature(), "--elf"])
+        .arg(elf)
+        .args([
+            "--qemu-load",
+            &format!("{}Nm", f64::from(LOAD_MNM) / 1000.0),
+            "--bus",
+        ])
+        .arg(&link)
+        .args(["--ids", "1,2,3"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .with_context(|| format!("starting {}", vsa.display()))?;
+    let stdout = child.stdout.take().context("the bus's stdout")?;
+    let bus = Bus(child);
+    let mut ready = String::new();
+    BufReader::new(stdout)
+        .read_line(&mut ready)
+        .context("reading the bus's first line")?;
+    ensure!(
+        ready.starts_with("bus ready"),
+        "vsa serve-qemu --bus said {ready:?}"
+    );
+    println!("[{} dynamixel] {}", board.feature(), ready.trim());
+
+    let latency = std::env::var("DXL_LATENCY_MS").unwrap_or_else(|_| "1000".into());
+    let reads = std::env::var("DXL_READS").unwrap_or_else(|_| "1000".into());
+    let started = Instant::now();
+    let out = Command::new(&python)
+        .arg(workspace_root().join("dynamixel/tests/sdk_check.py"))
+        .arg(&link)
+        .args(["--latency-ms", &latency, "--reads", &reads])
+        .args(["--zero-delay-reads", &SHORT_READS.to_string()])
+        .args(["--sync-reads", &SHORT_READS.to_string()])
+        .args(["--tolerance", &TOLERANCE_COUNTS.to_string()])
+        .args(["--clutch-um", &CLUTCH_UM.to_string(), "--load", "cw"])
+        .output()
+        .context("running sdk_check.py")?;
+    let secs = started.elapsed().as_secs_f64();
+    drop(bus);
+    let text = String::from_utf8_lossy(&out.stdout);
+    let mut passed = 0;
+    for line in text.lines() {
+        println!("[{} dynamixel] {line}", board.feature());
+        passed += usize::from(line.starts_with("ok "));
+    }
+    let err = String::from_utf8_lossy(&out.stderr);
+    if !err.trim().is_empty() {
+        eprintln!("{err}");
+    }
+    ensure!(
+        out.status.success(),
+        "dynamixel-sdk checks failed on {}",
+        board.feature()
+    );
+    Ok(format!(
+        "{passed} dynamixel-sdk checks passed in {secs:.0} s"
+    ))
+}
