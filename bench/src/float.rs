@@ -34,8 +34,8 @@
 use core::f32::consts::PI;
 
 use model::control::schedule::{
-    CURRENT_OFFSET_TOLERANCE_COUNTS, FREE_PLAY_SWITCH_NM, IMPACT_SPEED_FRACTION,
-    RESISTANCE_TOLERANCE,
+    CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM, IMPACT_SPEED_FRACTION,
+    OBSERVER_RATIO, RESISTANCE_TOLERANCE,
 };
 use model::control::{Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
@@ -124,6 +124,9 @@ pub struct FloatSchedule {
     w_bias_per_amp: f32,
     impact_speed: f32,
     contact_torque: f32,
+    obs_beta: f32,
+    obs_beta2: f32,
+    float_load: f32,
     kd: f32,
     alpha: f32,
     ff_vel: f32,
@@ -193,6 +196,9 @@ impl FloatSchedule {
                 * i32f32(sched.torque_limit().to_bits())
                 / libm::sqrtf(k * j_g * j_l / j),
             contact_torque: i32f32(FREE_PLAY_SWITCH_NM.to_bits()) / 2.0,
+            obs_beta: 2.0 * w_c / OBSERVER_RATIO as f32 * DT,
+            obs_beta2: (w_c / OBSERVER_RATIO as f32) * (w_c / OBSERVER_RATIO as f32) * DT,
+            float_load: i32f32(FLOAT_LOAD_NM.to_bits()) / c * dpv,
             kd,
             alpha: DT / (tau_f + DT),
             ff_vel: dpv * (ke + r * bv / kt),
@@ -466,6 +472,9 @@ pub struct FloatController {
     duty_prev: i16,
     defl_prev: f32,
     defl_valid: bool,
+    theta_g: f32,
+    theta_g_valid: bool,
+    w_bias: f32,
 }
 
 impl FloatController {
@@ -490,6 +499,9 @@ impl FloatController {
             duty_prev: 0,
             defl_prev: 0.0,
             defl_valid: false,
+            theta_g: 0.0,
+            theta_g_valid: false,
+            w_bias: 0.0,
         }
     }
 
@@ -512,6 +524,8 @@ impl FloatController {
         self.integ = 0.0;
         self.duty_prev = 0;
         self.defl_valid = false;
+        self.theta_g_valid = false;
+        self.w_bias = 0.0;
     }
 
     fn centred_counts(&self, raw: u16) -> i32 {
@@ -576,6 +590,20 @@ impl FloatController {
         let e_raw = r.position - theta_l;
         let in_count = (-HALF_COUNT..HALF_COUNT).contains(&e_raw);
         let e = if in_count { 0.0 } else { e_raw };
+        // Gear angle: complementary filter (observer above ω_o, link encoder below).
+        let anchor = theta_l + e_raw.clamp(-HALF_COUNT, HALF_COUNT) + self.defl_prev;
+        let floating = libm::fabsf(self.integ) < s.float_load;
+        if self.theta_g_valid && floating {
+            self.theta_g += (w_gear - self.w_bias) * DT;
+            let pull = anchor - self.theta_g;
+            self.theta_g += s.obs_beta * pull;
+            self.w_bias -= s.obs_beta2 * pull;
+        } else {
+            self.theta_g = anchor;
+            self.theta_g_valid = true;
+        }
+        let e_g = r.position + self.defl_prev - self.theta_g;
+        let e_p = if floating { e_g } else { e };
         self.w_ref += s.alpha * (r.velocity - self.w_ref);
 
         // --- feed-forward ---
@@ -593,7 +621,7 @@ impl FloatController {
         self.defl_valid = true;
 
         // --- PID ---
-        let u = u_ff + u_defl + s.kp * e + u_i + s.kd * (self.w_ref - self.w_fb);
+        let u = u_ff + u_defl + s.kp * e_p + u_i + s.kd * (self.w_ref - self.w_fb);
 
         // --- limits ---
         let emf = s.duty_per_w * w_gear;
@@ -647,8 +675,8 @@ impl FloatController {
             } else {
                 -s.kp_dt * slip
             }
-        } else if libm::fabsf(e) < s.int_band {
-            s.ki_dt * e
+        } else if libm::fabsf(e_p) < s.int_band {
+            s.ki_dt * e_p
         } else {
             0.0
         };

@@ -130,6 +130,13 @@ pub struct Controller {
     /// Deflection feed-forward of the previous tick, rad Q16, and whether it is valid.
     defl_prev: i32,
     defl_valid: bool,
+    /// Gear angle estimate, rad Q32: the observer's gear velocity integrated, pulled
+    /// towards θ_l + φ_ref at the rate ω_o (a complementary filter: the gear from the
+    /// motor above ω_o, from the link encoder below), and whether it is set.
+    theta_g: i64,
+    theta_g_valid: bool,
+    /// The observer's velocity bias the complementary filter found, rad/s Q32.
+    w_bias: i64,
 }
 
 impl Controller {
@@ -159,6 +166,9 @@ impl Controller {
             duty_prev: 0,
             defl_prev: 0,
             defl_valid: false,
+            theta_g: 0,
+            theta_g_valid: false,
+            w_bias: 0,
         })
     }
 
@@ -219,6 +229,8 @@ impl Controller {
         self.integ = 0;
         self.duty_prev = 0;
         self.defl_valid = false;
+        self.theta_g_valid = false;
+        self.w_bias = 0;
     }
 
     /// One 1 kHz control step. Total: no panics, saturating arithmetic throughout.
@@ -290,7 +302,39 @@ impl Controller {
         let r: Reference = self.traj.advance();
         let e_q32 = r.position.to_bits().saturating_sub(theta_l);
         let in_count = (-ENCODER_HALF_COUNT_Q32..ENCODER_HALF_COUNT_Q32).contains(&e_q32);
+
+        // --- gear angle: complementary filter of the observer and the link encoder ---
+        // The link at the point of its measured count nearest the reference (the encoder
+        // cannot tell better), plus the deflection the coupling needs.
+        let link =
+            theta_l.saturating_add(e_q32.clamp(-ENCODER_HALF_COUNT_Q32, ENCODER_HALF_COUNT_Q32));
+        let anchor = link.saturating_add(q16_to_q32(self.defl_prev));
+        // Under load the beams stay in contact on one side and the link error is the
+        // better signal (an observer scale error adds up over a move); the gear loop is for
+        // a link that floats in the free play.
+        let floating = q32_to_q16(self.integ).saturating_abs() < s.float_load_q16;
+        if self.theta_g_valid && floating {
+            let w = w_gear.saturating_sub(q32_to_q16(self.w_bias));
+            self.theta_g = self.theta_g.saturating_add(s.dt.apply_wide(w));
+            let pull = q32_to_q16(anchor.saturating_sub(self.theta_g));
+            self.theta_g = self.theta_g.saturating_add(s.obs_beta.apply_wide(pull));
+            // The observer's bias (current offset, resistance error) integrated out.
+            self.w_bias = self.w_bias.saturating_sub(s.obs_beta2.apply_wide(pull));
+        } else {
+            self.theta_g = anchor;
+            self.theta_g_valid = true;
+        }
+
         let e = if in_count { 0 } else { q32_to_q16(e_q32) };
+        // The position loop acts on the gear: where the gear should be (the reference plus
+        // the deflection the coupling needs) minus the gear estimate. The link enters it
+        // below ω_o only, so the link's rattle in the free play does not drive the motor.
+        let e_g = q32_to_q16(
+            r.position
+                .to_bits()
+                .saturating_add(q16_to_q32(self.defl_prev))
+                .saturating_sub(self.theta_g),
+        );
 
         // Derivative on the measured (gear) velocity; the reference velocity goes through
         // the same filter so that the filter lag does not show up as a tracking error.
@@ -324,7 +368,7 @@ impl Controller {
         // --- PID (derivative on the filtered link velocity) ---
         let u = u_ff
             .saturating_add(u_defl)
-            .saturating_add(s.kp.apply(e))
+            .saturating_add(s.kp.apply(if floating { e_g } else { e }))
             .saturating_add(u_i)
             .saturating_add(s.kd.apply(self.w_ref.saturating_sub(self.w_fb)));
 
@@ -401,8 +445,14 @@ impl Controller {
             } else {
                 -s.kp_dt.apply_wide(slip)
             }
-        } else if e.saturating_abs() < s.int_band_q16 {
-            s.ki_dt.apply_wide(e)
+        } else if !floating {
+            if e.saturating_abs() < s.int_band_q16 {
+                s.ki_dt.apply_wide(e)
+            } else {
+                0
+            }
+        } else if e_g.saturating_abs() < s.int_band_q16 {
+            s.ki_dt.apply_wide(e_g)
         } else {
             0 // integral separation: far from the target the P term saturates anyway
         };

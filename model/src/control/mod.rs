@@ -15,7 +15,10 @@
 //!    compensation (a dead-zone inverse on the gear side);
 //! 7. PID with the derivative on the filtered gear velocity; integral separation, and a
 //!    gear hold inside the target count (dead band: the observer's bias bound for a
-//!    current-sense offset and a warm motor's resistance);
+//!    current-sense offset and a warm motor's resistance). While the link floats in the
+//!    free play (little load held), P and I act on the gear's error against a gear-angle
+//!    estimate (the observer integrated, pulled towards the link below ω_c/3), so that
+//!    the link's rattle in the gap does not drive the motor;
 //! 8. braking governor for stationary references (ω_g² > 2·a_b·|e|);
 //! 9. clamps: current window about the back-EMF, beam-derived torque limit, duty limit,
 //!    with anti-windup.

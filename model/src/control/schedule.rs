@@ -42,6 +42,13 @@ pub const CURRENT_OFFSET_TOLERANCE_COUNTS: i32 = 20;
 /// cases): 1.0 leaves 17 runs above σ_allow, 0.6 leaves 6.
 pub const IMPACT_SPEED_FRACTION: I32F32 = I32F32::lit("0.6");
 
+/// Crossover of the gear-angle complementary filter: ω_o = ω_c / `OBSERVER_RATIO`.
+pub const OBSERVER_RATIO: i32 = 3;
+
+/// Below this load (the torque the integrator holds), N·m, the link is taken to float in
+/// the free play and the position loop acts on the gear estimate.
+pub const FLOAT_LOAD_NM: I32F32 = I32F32::lit("0.05");
+
 /// The per-tick constants of one configuration (all divisions done).
 ///
 /// Signal formats: Q16 `i32` (see [`super::gain`]); duty in ‰, angles in rad, velocities
@@ -82,6 +89,14 @@ pub struct Schedule {
     /// N·m Q16 (half `FREE_PLAY_SWITCH_NM`).
     pub(crate) contact_torque_q16: i32,
     pub(crate) kd: Gain,
+    /// dt = 1 ms (rad/s → rad per tick, applied wide) and the complementary filter's
+    /// pull β = ω_o·dt per tick.
+    pub(crate) dt: Gain,
+    pub(crate) obs_beta: Gain,
+    /// The bias integrator's gain ω_o²·dt (1/s per tick).
+    pub(crate) obs_beta2: Gain,
+    /// Duty of `FLOAT_LOAD_NM`, ‰ Q16.
+    pub(crate) float_load_q16: i32,
     /// Derivative filter coefficient α = dt/(τ_f + dt), Q16.
     pub(crate) alpha: Gain,
     /// Feed-forward ‰ per rad/s of ṙ: (1000/V)·(k_e + R·b_v/k_t).
@@ -324,6 +339,22 @@ impl Schedule {
             )?)?,
             contact_torque_q16: to_q16(wide(FREE_PLAY_SWITCH_NM) / 2)?,
             kd: to_gain(wide(gains.kd))?,
+            dt: to_gain(dt)?,
+            obs_beta: to_gain(
+                mul(div(w, I64F64::from_num(OBSERVER_RATIO))?, dt)?
+                    .saturating_mul(I64F64::from_num(2)),
+            )?,
+            float_load_q16: to_q16(mul(
+                div(wide(FLOAT_LOAD_NM), p.torque_per_volt)?,
+                duty_per_volt,
+            )?)?,
+            obs_beta2: to_gain(mul(
+                mul(
+                    div(w, I64F64::from_num(OBSERVER_RATIO))?,
+                    div(w, I64F64::from_num(OBSERVER_RATIO))?,
+                )?,
+                dt,
+            )?)?,
             alpha: to_gain(alpha)?,
             ff_vel: to_gain(mul(duty_per_volt, add(ke, div(mul(r, bv)?, kt)?)?)?)?,
             ff_acc: to_gain(div(mul(mul(duty_per_volt, r)?, p.j)?, kt)?)?,
