@@ -12,8 +12,9 @@
 //!   leaves the pot's coarse quantisation in the residual instead of biasing the slope.
 //! * the capacity the overload check uses: until the estimate confirms the configured
 //!   stiffness, the weakest one the clutch tolerance allows, τ_cap(L)·L/(L + ΔL);
-//!   confirmed (compliance within [`CONFIRM_RATIO`] of the configured one), τ_cap(L)·
-//!   [`CONFIRM_RATIO`]^(−1/3) (the longest clutch that compliance allows);
+//!   confirmed (the compliance's upper bound within [`CONFIRM_RATIO`] of the configured
+//!   one), τ_cap(L)·[`CONFIRM_RATIO`]^(−1/3) (the longest clutch that compliance
+//!   allows);
 //! * [`FaultCode::ClutchMismatch`](crate::supervisor::FaultCode::ClutchMismatch) when the
 //!   compliance's lower bound (the pot's half-count quantisation taken against the
 //!   estimate, a third sum Σλⁿ|τ|) stays above [`MISMATCH_RATIO`] × the configured one
@@ -225,11 +226,12 @@ impl ClutchMonitor {
             return false;
         }
         // c = s_tp/s_tt against r·c_cfg without dividing (bounds at `TAU_MAX_Q12`).
-        let lhs = self.s_tp << 24;
-        // A mismatch only on the estimate's lower bound: each φ may be off by half a pot
-        // count (|e| ≤ q), so Σλⁿτφ by at most q·Σλⁿ|τ|. A still hold whose deflection
-        // sits between two counts otherwise reads up to q/φ too soft.
-        let low = self.s_tp.saturating_sub(lim.half_count_q16 * self.s_ta) << 24;
+        // A mismatch only on the estimate's lower bound, a confirmation only on its upper
+        // one: each φ may be off by half a pot count (|e| ≤ q), so Σλⁿτφ by at most
+        // q·Σλⁿ|τ|. A still hold whose deflection sits between two counts otherwise reads
+        // up to q/φ too soft (or too stiff).
+        let q = lim.half_count_q16 * self.s_ta;
+        let low = self.s_tp.saturating_sub(q) << 24;
         if low > lim.mismatch_28 * self.s_tt {
             self.beyond = self.beyond.saturating_add(1);
             if self.beyond >= MISMATCH_TICKS {
@@ -239,7 +241,8 @@ impl ClutchMonitor {
             return false;
         }
         self.beyond = 0;
-        if self.state == ClutchState::Unknown && lhs <= lim.confirm_28 * self.s_tt {
+        let high = self.s_tp.saturating_add(q) << 24;
+        if self.state == ClutchState::Unknown && high <= lim.confirm_28 * self.s_tt {
             self.state = ClutchState::Confirmed;
         }
         false
