@@ -115,7 +115,12 @@ fn a_longer_clutch_never_overloads_the_beams_and_is_caught_where_resolvable() {
                 }
                 if let Some((_, t)) = mismatch {
                     caught.push(label.clone());
-                    assert!(*t <= 1000, "{label}: mismatch after {t} ms");
+                    // Within 1 s where the pot resolves the deflection (1 mm, below);
+                    // half a millimetre is caught late if at all (docs/calibration.md).
+                    assert!(
+                        delta_um < 1000 || *t <= 1000,
+                        "{label}: mismatch after {t} ms"
+                    );
                 }
                 worst = worst.max(out.peak_ratio);
             }
@@ -139,7 +144,10 @@ fn a_longer_clutch_never_overloads_the_beams_and_is_caught_where_resolvable() {
         .collect();
     assert_eq!(over_cases, KNOWN_OVER, "cases beyond σ_allow");
     // Where the pot resolves the deflection (the paper's beams at 5 mm), a clutch 1 mm
-    // too long is caught in every motion (0.5 mm: in three of the four, printed above).
+    // too long is caught in every motion. 0.5 mm (compliance 1.33×, just beyond 1.25×)
+    // only under the heavy load (printed above): with 0.3 N·m the still hold reads the
+    // same pot count at 5 and 5.5 mm, and the monitor decides on its estimate's lower
+    // bound, the pot's half-count quantisation taken against it.
     for name in MOTIONS {
         let label = format!("L 5 mm, actual 6 mm, {name}");
         assert!(caught.contains(&label), "{label}: not caught");

@@ -12,11 +12,13 @@
 //!   leaves the pot's coarse quantisation in the residual instead of biasing the slope.
 //! * the capacity the overload check uses: until the estimate confirms the configured
 //!   stiffness, the weakest one the clutch tolerance allows, τ_cap(L)·L/(L + ΔL);
-//!   confirmed (compliance within [`CONFIRM_RATIO`] of the configured one), τ_cap(L)·
-//!   [`CONFIRM_RATIO`]^(−1/3) (the longest clutch that compliance allows);
+//!   confirmed (the compliance's upper bound within [`CONFIRM_RATIO`] of the configured
+//!   one), τ_cap(L)·[`CONFIRM_RATIO`]^(−1/3) (the longest clutch that compliance
+//!   allows);
 //! * [`FaultCode::ClutchMismatch`](crate::supervisor::FaultCode::ClutchMismatch) when the
-//!   compliance stays above [`MISMATCH_RATIO`] × the configured one (k below 80 %: the
-//!   clutch about 8 % longer than configured) for 64 consecutive ticks.
+//!   compliance's lower bound (the pot's half-count quantisation taken against the
+//!   estimate, a third sum Σλⁿ|τ|) stays above [`MISMATCH_RATIO`] × the configured one
+//!   (k below 80 %: the clutch about 8 % longer than configured) for 64 consecutive ticks.
 //!
 //! Evidence: a decision needs Σλⁿτ² ≥ (τ_ev)²·256, τ_ev the torque that deflects the
 //! configured beams by one pot count: the torque must have been large enough, for about
@@ -69,6 +71,8 @@ pub struct ClutchLimits {
     confirm_28: i64,
     /// Free play φ_b, rad Q16.
     free_play_q16: i32,
+    /// Half a pot count, rad Q16: the pot's quantisation error bound.
+    half_count_q16: i64,
     /// |τ| below which the beams may be anywhere in the free play, N·m Q16.
     contact_q16: i32,
     /// Least Σλⁿτ² for a decision, N·m² Q24.
@@ -110,6 +114,7 @@ impl ClutchLimits {
             mismatch_28: (compliance_28 * MISMATCH_RATIO) >> 16,
             confirm_28: (compliance_28 * CONFIRM_RATIO) >> 16,
             free_play_q16: (sched.free_play().to_bits() >> 16) as i32,
+            half_count_q16: POT_COUNT_Q32 >> 17,
             contact_q16: sched.contact_torque_q16.max(1 << 11),
             evidence,
             cap_weak: if tol == 0 { cap } else { cap_weak },
@@ -130,6 +135,8 @@ pub struct ClutchMonitor {
     /// Σλⁿτ² (N·m² Q24) and Σλⁿτφ (N·m·rad Q28).
     s_tt: i64,
     s_tp: i64,
+    /// Σλⁿ|τ| (N·m Q12): bounds what the pot's quantisation can add to Σλⁿτφ.
+    s_ta: i64,
     /// Consecutive ticks beyond the mismatch ratio.
     beyond: u16,
 }
@@ -151,6 +158,7 @@ impl ClutchMonitor {
             w_prev: 0,
             s_tt: 0,
             s_tp: 0,
+            s_ta: 0,
             beyond: 0,
         }
     }
@@ -213,12 +221,18 @@ impl ClutchMonitor {
         let p = phi_e.clamp(-PHI_MAX_Q16, PHI_MAX_Q16);
         self.s_tt = self.s_tt - (self.s_tt >> FORGET) + i64::from(t * t);
         self.s_tp = self.s_tp - (self.s_tp >> FORGET) + i64::from(t * p);
+        self.s_ta = self.s_ta - (self.s_ta >> FORGET) + i64::from(t.abs());
         if self.s_tt < lim.evidence {
             return false;
         }
         // c = s_tp/s_tt against r·c_cfg without dividing (bounds at `TAU_MAX_Q12`).
-        let lhs = self.s_tp << 24;
-        if lhs > lim.mismatch_28 * self.s_tt {
+        // A mismatch only on the estimate's lower bound, a confirmation only on its upper
+        // one: each φ may be off by half a pot count (|e| ≤ q), so Σλⁿτφ by at most
+        // q·Σλⁿ|τ|. A still hold whose deflection sits between two counts otherwise reads
+        // up to q/φ too soft (or too stiff).
+        let q = lim.half_count_q16 * self.s_ta;
+        let low = self.s_tp.saturating_sub(q) << 24;
+        if low > lim.mismatch_28 * self.s_tt {
             self.beyond = self.beyond.saturating_add(1);
             if self.beyond >= MISMATCH_TICKS {
                 self.state = ClutchState::Mismatch;
@@ -227,7 +241,8 @@ impl ClutchMonitor {
             return false;
         }
         self.beyond = 0;
-        if self.state == ClutchState::Unknown && lhs <= lim.confirm_28 * self.s_tt {
+        let high = self.s_tp.saturating_add(q) << 24;
+        if self.state == ClutchState::Unknown && high <= lim.confirm_28 * self.s_tt {
             self.state = ClutchState::Confirmed;
         }
         false
