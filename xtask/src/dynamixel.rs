@@ -17,10 +17,9 @@
 //! of 14–18): the SDK's 16 ms default does not survive that. The port is opened at
 //! 9 600 Bd (the emulated bus ignores the rate) because the SDK sizes its broadcast-ping
 //! window from the rate alone: 4.4 s instead of 0.8 s at 1 Mbd, which the three statuses
-//! missed at that load. `DXL_READS` (default 200) sets the number of back-to-back 1.0
-//! READs: `DXL_READS=1000` is the full run (about 70 ms a READ at a load of 8,
-//! 240 ms at 15, so 1 000 would take minutes per board in `cargo xtask test` on a loaded
-//! host).
+//! missed at that load. `DXL_READS` (default 1 000) sets the number of back-to-back 1.0
+//! READs: about 40 ms each at a load of 6–9 (76 s for the whole qemu-m4 check), 240 ms at
+//! 15, so on a loaded host `DXL_READS=200` keeps the check to about a minute per board.
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -43,7 +42,7 @@ const CLUTCH_UM: u32 = 3_000;
 /// Back-to-back reads at return delay 0 and SYNC READs (each: 1.0 and 2.0 at delay 0).
 const SHORT_READS: u32 = 100;
 /// Back-to-back 1.0 READs unless `DXL_READS` says otherwise.
-const DEFAULT_READS: u32 = 200;
+const DEFAULT_READS: u32 = 1_000;
 /// The rate the SDK opens the bus at (see the module docs: the broadcast-ping window).
 const SDK_BAUD: u32 = 9_600;
 
