@@ -5,13 +5,15 @@ examples/pty_bus.rs, or the emulated boards of `vsa serve-qemu --bus` (cargo xta
     python3 -m venv /tmp/dxl-venv && /tmp/dxl-venv/bin/pip install dynamixel-sdk pyserial
     /tmp/dxl-venv/bin/python dynamixel/tests/sdk_check.py /tmp/vsa-dxl-bus [--latency-ms 16]
         [--tolerance COUNTS] [--clutch-um UM] [--load cw|ccw] [--reads N] [--sync-reads N]
-        [--zero-delay-reads N]
+        [--zero-delay-reads N] [--baud BD]
 
 --tolerance: how far a present position may be from its goal (0 for the ideal devices; the
 controller's tolerance on a board); --clutch-um: the clutch length the devices start at;
 --load: the direction bit the present load must show under the emulated load (a board
 served with --qemu-load); --reads / --sync-reads / --zero-delay-reads: how many
-back-to-back 1.0 READs, 2.0 SYNC READs, and of each at return delay 0.
+back-to-back 1.0 READs, 2.0 SYNC READs, and of each at return delay 0; --baud: the rate
+the port is opened at (an emulated bus ignores it, but the SDK's broadcast-ping window
+follows it and not LATENCY_TIMER: about 0.8 s at 1 Mbd, 4.4 s at 9 600 Bd).
 
 Protocol 1.0 (AX-12A), then a switch to 2.0 by a broadcast write of Protocol Type, the
 2.0 checks (X-series table, GroupSyncRead), a switch back and the Lock check. The expected
@@ -29,7 +31,7 @@ from dynamixel_sdk import (COMM_RX_TIMEOUT, COMM_SUCCESS, GroupSyncRead, GroupSy
 IDS = (1, 2, 3)
 BROADCAST = 0xFE
 OPTS = {"--latency-ms": None, "--tolerance": 0, "--clutch-um": 4000, "--load": None,
-        "--reads": 1000, "--sync-reads": 1000, "--zero-delay-reads": None}
+        "--reads": 1000, "--sync-reads": 1000, "--zero-delay-reads": None, "--baud": 1000000}
 
 # AX-12A defaults (e-Manual): address -> (size, value). Firmware version is ours (1).
 AX_DEFAULTS = {
@@ -315,7 +317,7 @@ def main():
         dynamixel_sdk.port_handler.LATENCY_TIMER = float(OPTS["--latency-ms"])
     print(f"SDK packet timeout allowance: LATENCY_TIMER = {dynamixel_sdk.port_handler.LATENCY_TIMER} ms")
     port = PortHandler(args[0] if args else "/tmp/vsa-dxl-bus")
-    if not port.openPort() or not port.setBaudRate(1000000):
+    if not port.openPort() or not port.setBaudRate(OPTS["--baud"]):
         print(f"cannot open {port.getPortName()}")
         return 1
     protocol1(port)

@@ -16,9 +16,9 @@
 //! rules: only to a packet addressed to this device (the bus device's rule), after the
 //! Return Delay Time counted from the end of the request, and only while the line is
 //! between packets — a packet heard meanwhile holds the status back until the line is
-//! quiet again, for at most [`HOLD_LIMIT_US`], then it is dropped (counted). The link task
-//! waits for that time itself (a spin on the board's µs clock, at its low priority, the
-//! control tick running above it).
+//! quiet again, for at most [`HOLD_LIMIT_US`] (or the idle time if longer), then it is
+//! dropped (counted). The link task waits for that time itself (a spin on the board's µs
+//! clock, at its low priority, the control tick running above it).
 
 use crate::dynamixel::Bus;
 use crate::line::{Route, Splitter};

@@ -3,19 +3,23 @@
 //! `dynamixel/tests/sdk_check.py` in Protocol 1.0 (pings, every control-table default,
 //! broadcast torque enable, one SYNC_WRITE and the present positions within the
 //! controller's tolerance, the present load's direction under the load, the angle-limit,
-//! range and checksum error bits, 1 000 back-to-back READs) and Protocol 2.0 (the X-series
+//! range and checksum error bits, back-to-back READs) and Protocol 2.0 (the X-series
 //! table, broadcast ping, SYNC WRITE, SYNC READ, the error numbers).
 //!
 //! The SDK comes from PyPI into the virtual environment `target/venv` (made with
 //! `python3 -m venv`; when the `venv` module is missing and we are root with apt-get,
 //! `python3-venv` is installed the way `setup` installs QEMU: never removing a package).
 //!
-//! `DXL_LATENCY_MS` (default 1000) is the SDK's latency allowance: a status times out after
+//! `DXL_LATENCY_MS` (default 2500) is the SDK's latency allowance: a status times out after
 //! twice that plus 2 ms. QEMU's emulated USART takes the host's bytes slowly on a loaded
 //! machine (about 1 kB/s at a load of 13 on 2 cores, see `e2e`), and a loaded host stalls
-//! the emulators now and then for most of a second: the SDK's 16 ms default does not
-//! survive that. `DXL_READS` (default 1000) sets the number of back-to-back
-//! 1.0 READs.
+//! the emulators now and then for seconds (7 of 1 000 READs past 2 s on qemu-m3 at a load
+//! of 14–18): the SDK's 16 ms default does not survive that. The port is opened at
+//! 9 600 Bd (the emulated bus ignores the rate) because the SDK sizes its broadcast-ping
+//! window from the rate alone: 4.4 s instead of 0.8 s at 1 Mbd, which the three statuses
+//! missed at that load. `DXL_READS` (default 1 000) sets the number of back-to-back 1.0
+//! READs: about 40 ms each at a load of 6–9 (76 s for the whole qemu-m4 check), 240 ms at
+//! 15, so on a loaded host `DXL_READS=200` keeps the check to about a minute per board.
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -37,6 +41,10 @@ const TOLERANCE_COUNTS: u32 = 2;
 const CLUTCH_UM: u32 = 3_000;
 /// Back-to-back reads at return delay 0 and SYNC READs (each: 1.0 and 2.0 at delay 0).
 const SHORT_READS: u32 = 100;
+/// Back-to-back 1.0 READs unless `DXL_READS` says otherwise.
+const DEFAULT_READS: u32 = 1_000;
+/// The rate the SDK opens the bus at (see the module docs: the broadcast-ping window).
+const SDK_BAUD: u32 = 9_600;
 
 /// The venv's python, with `dynamixel_sdk` and `serial` importable: makes the venv and
 /// installs them when needed.
@@ -130,14 +138,15 @@ pub fn run(board: Board, elf: &Path) -> Result<String> {
     );
     println!("[{} dynamixel] {}", board.feature(), ready.trim());
 
-    let latency = std::env::var("DXL_LATENCY_MS").unwrap_or_else(|_| "1000".into());
-    let reads = std::env::var("DXL_READS").unwrap_or_else(|_| "1000".into());
+    let latency = std::env::var("DXL_LATENCY_MS").unwrap_or_else(|_| "2500".into());
+    let reads = std::env::var("DXL_READS").unwrap_or_else(|_| DEFAULT_READS.to_string());
     let started = Instant::now();
     let out = Command::new(&python)
         .arg(workspace_root().join("dynamixel/tests/sdk_check.py"))
         .arg(&link)
         .args(["--latency-ms", &latency, "--reads", &reads])
         .args(["--zero-delay-reads", &SHORT_READS.to_string()])
+        .args(["--baud", &SDK_BAUD.to_string()])
         .args(["--sync-reads", &SHORT_READS.to_string()])
         .args(["--tolerance", &TOLERANCE_COUNTS.to_string()])
         .args(["--clutch-um", &CLUTCH_UM.to_string(), "--load", "cw"])
