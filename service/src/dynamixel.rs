@@ -57,42 +57,47 @@ const fn div_round(a: i64, b: i64) -> i64 {
     }
 }
 
+/// Position register → link angle, µrad, for a register with `centre` at 0 rad and
+/// `nrad` nanoradians per step.
+const fn register_to_urad(value: i32, centre: i32, nrad: i64) -> i32 {
+    div_round((value - centre) as i64 * nrad, 1000) as i32
+}
+
+/// Link angle, µrad → position register (the inverse of [`register_to_urad`]), clamped to
+/// 0..=`max`.
+const fn urad_to_register(urad: i32, centre: i32, nrad: i64, max: i32) -> i32 {
+    let c = centre as i64 + div_round(urad as i64 * 1000, nrad);
+    if c < 0 {
+        0
+    } else if c > max as i64 {
+        max
+    } else {
+        c as i32
+    }
+}
+
 /// AX position count → link angle, µrad.
 #[must_use]
 pub const fn ax_count_to_urad(count: i32) -> i32 {
-    div_round((count - AX_CENTRE) as i64 * AX_COUNT_NRAD, 1000) as i32
+    register_to_urad(count, AX_CENTRE, AX_COUNT_NRAD)
 }
 
 /// Link angle, µrad → AX position count, clamped to 0–1023.
 #[must_use]
 pub const fn urad_to_ax_count(urad: i32) -> i32 {
-    let c = AX_CENTRE as i64 + div_round(urad as i64 * 1000, AX_COUNT_NRAD);
-    if c < 0 {
-        0
-    } else if c > 1023 {
-        1023
-    } else {
-        c as i32
-    }
+    urad_to_register(urad, AX_CENTRE, AX_COUNT_NRAD, 1023)
 }
 
 /// X position → link angle, µrad.
 #[must_use]
 pub const fn x_pulse_to_urad(pulse: i32) -> i32 {
-    div_round((pulse - X_CENTRE) as i64 * X_PULSE_NRAD, 1000) as i32
+    register_to_urad(pulse, X_CENTRE, X_PULSE_NRAD)
 }
 
 /// Link angle, µrad → X position, clamped to 0–4095.
 #[must_use]
 pub const fn urad_to_x_pulse(urad: i32) -> i32 {
-    let c = X_CENTRE as i64 + div_round(urad as i64 * 1000, X_PULSE_NRAD);
-    if c < 0 {
-        0
-    } else if c > 4095 {
-        4095
-    } else {
-        c as i32
-    }
+    urad_to_register(urad, X_CENTRE, X_PULSE_NRAD, 4095)
 }
 
 /// A signed quantity in AX sign-magnitude: |v| clamped to 1023, bit 10 when negative (CW).

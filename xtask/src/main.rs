@@ -126,6 +126,20 @@ fn main() -> ExitCode {
     }
 }
 
+/// One emulated-board check on its own (`cargo xtask e2e | persistence | dynamixel`): set-up,
+/// the firmware build, the check, its summary line.
+fn board_check<T: std::fmt::Display>(
+    board: Board,
+    check: fn(Board, &std::path::Path) -> Result<T>,
+) -> Result<ExitCode> {
+    setup::ensure_targets()?;
+    setup::ensure_qemu()?;
+    let elf = firmware::build(board)?;
+    let r = check(board, &elf)?;
+    println!("{}: {r}", board.feature());
+    Ok(ExitCode::SUCCESS)
+}
+
 fn dispatch(task: Task) -> Result<ExitCode> {
     match task {
         Task::Run {
@@ -177,30 +191,9 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             ExitCode::FAILURE
         }),
         Task::Flash => flash::run(),
-        Task::E2e { board } => {
-            setup::ensure_targets()?;
-            setup::ensure_qemu()?;
-            let elf = firmware::build(board)?;
-            let r = e2e::run(board, &elf)?;
-            println!("{}: {r}", board.feature());
-            Ok(ExitCode::SUCCESS)
-        }
-        Task::Persistence { board } => {
-            setup::ensure_targets()?;
-            setup::ensure_qemu()?;
-            let elf = firmware::build(board)?;
-            let r = persistence::run(board, &elf)?;
-            println!("{}: {r}", board.feature());
-            Ok(ExitCode::SUCCESS)
-        }
-        Task::Dynamixel { board } => {
-            setup::ensure_targets()?;
-            setup::ensure_qemu()?;
-            let elf = firmware::build(board)?;
-            let r = dynamixel::run(board, &elf)?;
-            println!("{}: {r}", board.feature());
-            Ok(ExitCode::SUCCESS)
-        }
+        Task::E2e { board } => board_check(board, e2e::run),
+        Task::Persistence { board } => board_check(board, persistence::run),
+        Task::Dynamixel { board } => board_check(board, dynamixel::run),
         Task::DecodeLog { elf, log } => {
             let format = defmt_log::LogFormat::from_elf(&elf)?;
             let bytes = std::fs::read(&log)
