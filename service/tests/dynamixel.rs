@@ -6,27 +6,20 @@
 use dynamixel::instruction as ins;
 use dynamixel::v1::{self, error};
 use dynamixel::{Field, Protocol};
-use model::control::Config;
-use model::servo::{Servo, TickInput};
-use model::supervisor::SupervisorConfig;
-use model::{Design, Length};
-use plant::scenario::BridgeLines;
-use plant::served::ServedActuator;
 use service::dynamixel::{move_duration_ms, Bus};
-use service::{Actuator, Service};
 
+// This binary drives the bench's ticks through the bus, not its own protocol requests.
+#[allow(dead_code)]
+mod closed_loop;
 mod common;
-use common::Cell;
 
 /// One AX position count, rad.
 const COUNT_RAD: f64 = 300.0 / 1024.0 * std::f64::consts::PI / 180.0;
 
+/// The closed loop of a serving board with the Dynamixel bus in front of it.
 struct Bench {
-    actuator: Cell,
-    service: Service,
+    lp: closed_loop::Bench,
     bus: Bus,
-    world: ServedActuator,
-    lines: BridgeLines,
 }
 
 /// A status packet: (ID, error byte, parameters).
@@ -34,15 +27,9 @@ type Status = (u8, u8, Vec<u8>);
 
 impl Bench {
     fn new(load_nm: f32) -> Bench {
-        let design = Design::paper();
-        let config = Config::paper(Length::from_int(3));
-        let sup = SupervisorConfig::DEFAULT;
         Bench {
-            actuator: Cell(Actuator::new(Servo::new(&design, &config, &sup).unwrap())),
-            service: Service::new(design, config, sup),
+            lp: closed_loop::Bench::new(load_nm),
             bus: Bus::new(1, Protocol::V1),
-            world: ServedActuator::new(design, &config, load_nm).unwrap(),
-            lines: BridgeLines::default(),
         }
     }
 
@@ -53,7 +40,7 @@ impl Bench {
         }
         self.bus.idle();
         let mut out = Vec::new();
-        while let Some(o) = self.bus.poll(&mut self.service, &mut self.actuator) {
+        while let Some(o) = self.bus.poll(&mut self.lp.service, &mut self.lp.actuator) {
             if let Some(r) = o.reply {
                 let b = r.bytes;
                 assert_eq!(&b[..2], &[0xFF, 0xFF]);
@@ -88,18 +75,7 @@ impl Bench {
 
     fn run(&mut self, ticks: u32) {
         for _ in 0..ticks {
-            let a = &mut self.actuator.0;
-            let r = self.world.tick(self.lines, a.servo.controller().schedule());
-            let input = TickInput {
-                link_encoder: r.link_encoder,
-                gear_pot: Some(r.gear_pot),
-                current_adc: r.current_adc,
-                read_error: None,
-            };
-            let out = a.servo.tick(&input);
-            self.lines = BridgeLines::for_demand(out.bridge);
-            let _ = a.after_tick(&input, &out);
-            assert!(out.new_fault.is_none(), "fault {:?}", out.new_fault);
+            self.lp.step();
         }
     }
 }
@@ -124,7 +100,7 @@ fn it_answers_as_an_ax12a_with_the_defaults() {
     assert_eq!(v, [120]);
     // Clutch length 3 mm, and its stiffness and capacity agree with our own protocol.
     assert_eq!(b.read16(50), 3000);
-    let status = b.actuator.0.status();
+    let status = b.lp.actuator.0.status();
     let (_, _, k) = b.ask(1, ins::READ, &[52, 4]).unwrap();
     assert_eq!(
         u32::from_le_bytes(k.try_into().unwrap()),
@@ -216,12 +192,12 @@ fn extra_registers_reconfigure_the_controller_like_our_protocol() {
     let mut b = Bench::new(0.0);
     b.run(20);
     assert_eq!(b.write16(50, 5000), 0, "clutch length 5 mm");
-    let status = b.actuator.0.status();
+    let status = b.lp.actuator.0.status();
     assert_eq!(status.clutch_length_um, 5000);
     // Torque limit 512/1023 → margin 500 ‰ of τ_cap in force.
     assert_eq!(b.write16(34, 512), 0);
     assert_eq!(
-        b.service.config().limits.torque_margin,
+        b.lp.service.config().limits.torque_margin,
         model::Ratio::from_bits(service::milli_to_q32(500))
     );
     assert_eq!(b.read16(34), 512);

@@ -17,7 +17,7 @@ use crate::common::Cell;
 /// A serving board without the UART.
 pub struct Bench {
     pub actuator: Cell,
-    service: Service,
+    pub service: Service,
     handler: Handler,
     world: ServedActuator,
     lines: BridgeLines,
@@ -62,6 +62,9 @@ impl Bench {
         };
         let out = a.servo.tick(&input);
         self.lines = BridgeLines::for_demand(a.open_loop.demand(&input, &out));
+        // The live values the status and the Dynamixel registers report, as the firmware's
+        // tick publishes them.
+        let _ = a.after_tick(&input, &out);
         assert!(out.new_fault.is_none(), "fault {:?}", out.new_fault);
         (input, out)
     }
