@@ -89,7 +89,8 @@ pub enum Request {
     DisarmHeartbeat,
     /// Reply: [`Reply::Limits`], the live limits and the position window in force.
     GetLimits,
-    /// Reply: [`Reply::Sensors`], the raw readings of the last control tick (any state).
+    /// Reply: [`Reply::Sensors`], the raw readings of the last control tick (any state);
+    /// [`ErrorCode::Busy`] before the first tick (no readings yet: ask again).
     GetSensors,
     /// Drive the motor open-loop at `duty_permille` for `duration_ms`, to check the motor's
     /// direction and the sensors before the loop is closed. Only while disabled (else

@@ -682,7 +682,7 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
     }
 
     fn raw_sensors(&mut self) -> Result<protocol::RawSensors, ErrorCode> {
-        Ok(self.actuator.lock(|a| a.open_loop.last()))
+        self.actuator.lock(|a| a.open_loop.last())
     }
 
     fn nudge(&mut self, duty_permille: i16, duration_ms: u16) -> Result<(), ErrorCode> {
