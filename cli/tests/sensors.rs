@@ -1,7 +1,8 @@
 //! `vsa sensors` without firmware: its arguments are checked before anything is sent
 //! (exit 2), and a board that does not know the bring-up requests (the in-process fake
-//! board, `client::fake`) is reported in one line (exit 1). `cargo xtask test` runs it
-//! against the firmware on both emulated boards.
+//! board, `client::fake`) is reported in one line (exit 1), and so is one that never has a
+//! reading (a scripted board answering busy); one with no reading yet is asked again.
+//! `cargo xtask test` runs `vsa sensors` against the firmware on both emulated boards.
 
 use std::process::{Command, Output};
 
