@@ -49,19 +49,6 @@ fn step(mut cmd: Command) -> Result<()> {
     Ok(())
 }
 
-/// Runs a check that times real host-side I/O against an emulated board (a client's reply
-/// timeouts on a loaded machine) a second time if the first attempt failed; the first
-/// failure is printed, so a flaky pass is visible in the log. A real defect fails twice.
-fn once_more_if_failed<T>(name: &str, board: Board, check: impl Fn() -> Result<T>) -> Result<T> {
-    check().or_else(|e| {
-        println!(
-            "xtask test: retry {name} on {} after: {e:#}",
-            board.feature()
-        );
-        check()
-    })
-}
-
 /// Runs every check and returns whether all passed.
 pub fn run() -> Result<bool> {
     setup::ensure_targets()?;
@@ -179,10 +166,8 @@ pub fn run() -> Result<bool> {
     }
 
     for (board, elf) in elfs.iter().filter(|(b, _)| b.qemu_machine().is_some()) {
-        let result = once_more_if_failed("dynamixel-sdk", *board, || {
-            crate::dynamixel::run(*board, elf)
-        })
-        .map(|r| println!("[{} dynamixel] {r}", board.feature()));
+        let result = crate::dynamixel::run(*board, elf)
+            .map(|r| println!("[{} dynamixel] {r}", board.feature()));
         tally.record(&format!("dynamixel-sdk on {}", board.feature()), result);
     }
 
