@@ -17,8 +17,10 @@ pub struct OpenLoop {
     duty: i16,
     /// Ticks of it left (0: none).
     ticks_left: u16,
-    /// The readings of the last tick (none before the first tick).
-    last: Option<RawSensors>,
+    /// The readings of the last tick.
+    last: RawSensors,
+    /// Whether a tick has recorded `last` (before the first one there is no reading).
+    ticked: bool,
 }
 
 impl OpenLoop {
@@ -66,13 +68,14 @@ impl OpenLoop {
             self.ticks_left -= 1;
             self.duty
         };
-        self.last = Some(RawSensors {
+        self.last = RawSensors {
             tick: out.tick,
             link_encoder: input.link_encoder,
             gear_pot: input.gear_pot,
             current_adc: input.current_adc,
             nudge_duty_permille: nudge,
-        });
+        };
+        self.ticked = true;
         if nudge == 0 {
             out.bridge
         } else {
@@ -86,9 +89,10 @@ impl OpenLoop {
     /// [`ErrorCode::Busy`] before the first tick: there is no reading yet (a link that
     /// comes up before the control tick must not pass off zeros as one).
     pub const fn last(&self) -> Result<RawSensors, ErrorCode> {
-        match self.last {
-            Some(r) => Ok(r),
-            None => Err(ErrorCode::Busy),
+        if self.ticked {
+            Ok(self.last)
+        } else {
+            Err(ErrorCode::Busy)
         }
     }
 }
