@@ -286,6 +286,19 @@ pub fn baud_bps(protocol: Protocol, value: i32) -> Option<u32> {
     }
 }
 
+/// The value of `protocol`'s Baud Rate register that selects `bps` exactly, if any (the
+/// inverse of [`baud_bps`]; the AX register's range is 1–254).
+#[must_use]
+pub fn baud_register(protocol: Protocol, bps: u32) -> Option<i32> {
+    match protocol {
+        Protocol::V1 => (1..=254u8).find(|&v| ax_baud_bps(v) == bps).map(i32::from),
+        Protocol::V2 => X_BAUD_BPS
+            .iter()
+            .position(|&b| b == bps)
+            .and_then(|i| i32::try_from(i).ok()),
+    }
+}
+
 #[allow(clippy::too_many_arguments)] // one row of the table, in the e-Manual's column order
 const fn reg(
     address: u16,

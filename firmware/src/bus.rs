@@ -6,7 +6,6 @@
 //! idle line is noticed within a tick of [`IDLE_US`]. Nothing here touches the UART: the
 //! bytes come from the receive queue the board's receive path fills, whatever fills it.
 
-use dynamixel::Protocol;
 use service::dynamixel::Bus;
 use service::link::Link;
 
@@ -28,8 +27,20 @@ pub fn clock_us() -> u64 {
     cortex_m::interrupt::free(|_| crate::timing::uptime_us())
 }
 
-/// `link` serving the Dynamixel bus too, as ID `id`, in Protocol 1.0 (the AX-12A's; the
-/// stored protocol setting replaces it once the store holds one).
-pub fn serve<'q, W: embedded_io::Write>(link: Link<'q, W>, id: u8) -> Link<'q, W> {
-    link.with_dynamixel(Bus::new(id, Protocol::V1), clock_us, IDLE_US)
+/// `link` serving the Dynamixel bus too, with the stored bus settings (ID, protocol,
+/// baud, return delay, …), else the AX-12A's factory settings with `factory_id`.
+pub fn serve<'q, W: embedded_io::Write>(link: Link<'q, W>, factory_id: u8) -> Link<'q, W> {
+    let settings = link.service().boot_bus_settings(factory_id);
+    defmt::info!(
+        "Dynamixel bus: ID {=u8}, Protocol {=u8}.0, {=u32} Bd{=str}",
+        settings.id,
+        settings.protocol_version,
+        settings.baud_bps,
+        if link.service().bus_settings_stored() {
+            " (stored)"
+        } else {
+            " (factory settings)"
+        }
+    );
+    link.with_dynamixel(Bus::from_settings(&settings), clock_us, IDLE_US)
 }

@@ -96,9 +96,8 @@ mod app {
             run.idle,
         );
         defmt::info!(
-            "host link: USART2, protocol version {=u8}; Dynamixel ID {=u8}, Protocol 1.0",
-            protocol::VERSION,
-            run.dxl_id
+            "host link: USART2, protocol version {=u8}",
+            protocol::VERSION
         );
         let mut actuator = Actuator::new(parts.servo);
         let mut service = parts.service;
