@@ -149,6 +149,11 @@ impl<'q, W: Write> Link<'q, W> {
         &self.service
     }
 
+    /// The command service, to configure (e.g. [`Service::set_uart_rates`]).
+    pub fn service_mut(&mut self) -> &mut Service {
+        &mut self.service
+    }
+
     /// What the Dynamixel side sent and dropped.
     pub fn dynamixel_stats(&self) -> Option<DynamixelStats> {
         self.dynamixel.as_ref().map(|d| d.stats)

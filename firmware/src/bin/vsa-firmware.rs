@@ -198,6 +198,7 @@ mod app {
     #[task(binds = EXTI1, priority = 1, shared = [actuator], local = [link])]
     fn serial(mut cx: serial::Context) {
         cx.local.link.poll(&mut cx.shared.actuator);
+        firmware::bus::follow_baud(cx.local.link);
     }
 
     /// Writes the queued items to defmt (and ends an emulated run).
