@@ -273,8 +273,8 @@ impl Bus {
     }
 
     /// A device with the stored bus `settings` (ID, protocol, the protocol's Baud Rate,
-    /// return delay, status return level, angle limits); every other register at its
-    /// table default.
+    /// return delay, status return level, angle limits, the other EEPROM-area limits);
+    /// every other register at its table default.
     #[must_use]
     pub fn from_settings(settings: &BusSettings) -> Self {
         let protocol =
@@ -299,6 +299,7 @@ impl Bus {
             status_return_level: byte(Field::StatusReturnLevel),
             cw_angle_limit: word(Field::CwAngleLimit),
             ccw_angle_limit: word(Field::CcwAngleLimit),
+            limits: store::BusLimits::from_fields(|f| self.regs.store.get(f)),
         }
     }
 
@@ -325,6 +326,9 @@ impl Bus {
         );
         store.set(Field::CwAngleLimit, i32::from(settings.cw_angle_limit));
         store.set(Field::CcwAngleLimit, i32::from(settings.ccw_angle_limit));
+        for (field, value) in settings.limits.fields() {
+            store.set(field, value);
+        }
         if protocol != self.protocol() {
             self.set_protocol(protocol);
         }

@@ -414,6 +414,9 @@ fn bus_settings_written_on_the_bus_or_with_set_bus_survive_a_power_cycle() {
     assert_eq!(b.v1(7, ins::PING, &[]), Some(0));
     assert_eq!(b.v1(1, ins::PING, &[]), None);
     assert_eq!(stored(&flash).id, 7);
+    // The rest of the EEPROM area too: Max Torque (14, two bytes).
+    assert_eq!(b.v1(7, ins::WRITE, &[14, 0x00, 0x02]), Some(0));
+    assert_eq!(stored(&flash).limits.max_torque, 512);
 
     // Protocol 2.0 from our protocol: the bus speaks it after the reply; stored.
     let to_v2 = Request::SetBus(protocol::BusChange {
@@ -434,6 +437,10 @@ fn bus_settings_written_on_the_bus_or_with_set_bus_survive_a_power_cycle() {
         id: 7,
         protocol_version: 2,
         return_delay_2us: 10,
+        limits: store::BusLimits {
+            max_torque: 512,
+            ..BusSettings::ax12a_default().limits
+        },
         ..BusSettings::ax12a_default()
     };
     assert_eq!(stored(&flash), want);
