@@ -25,15 +25,10 @@ import time
 import dynamixel_sdk.port_handler
 from dynamixel_sdk import COMM_SUCCESS, PacketHandler, PortHandler
 
-failures = 0
+import sdk_check  # its check() prints the line and counts the failures
+from sdk_check import check
+
 RANGE, REFUSED = 0x08, 0x08 | 0x10 | 0x40
-
-
-def check(ok, what):
-    global failures
-    print(("ok   " if ok else "FAIL ") + what, flush=True)
-    if not ok:
-        failures += 1
 
 
 def ping(port, version, dxl_id):
@@ -113,7 +108,7 @@ def main():
         return 1
     {"fresh": fresh, "stored": stored, "switched": switched, "vsa": vsa}[step](port)
     port.closePort()
-    return 0 if failures == 0 else 1
+    return 0 if sdk_check.failures == 0 else 1
 
 
 if __name__ == "__main__":

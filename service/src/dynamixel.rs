@@ -261,7 +261,7 @@ impl Bus {
     }
 
     /// Whether an EEPROM-area setting (ID, baud, protocol, limits, …) changed since the
-    /// last call: the hook for the store that persists them.
+    /// last call (the link then hands them to the store, `crate::bus_settings`).
     pub fn settings_changed(&mut self) -> bool {
         core::mem::take(&mut self.regs.eeprom_dirty)
     }

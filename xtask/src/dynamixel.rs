@@ -96,6 +96,18 @@ fn install_venv_package() -> Result<()> {
     run_status(Command::new("sh").args(["-c", install])).context(install)
 }
 
+/// Clippy on the Nucleo's Dynamixel TTL build (`dynamixel-ttl`: USART2 single-wire half
+/// duplex at the bus's rate), which the boards' own builds do not compile.
+pub fn clippy_ttl() -> Command {
+    let mut clippy = cargo();
+    clippy
+        .args(["clippy", "--release", "--package", "vsa-firmware"])
+        .args(["--target", Board::NucleoF446re.target()])
+        .args(["--no-default-features", "--features", "dynamixel-ttl"])
+        .args(["--", "-D", "warnings"]);
+    clippy
+}
+
 /// Kills the bus (and with it its QEMUs: `vsa` kills its boards on SIGTERM).
 struct Bus(Child);
 
@@ -173,7 +185,7 @@ fn three_boards(python: &Path, vsa: &Path, board: Board, elf: &Path) -> Result<S
     let latency = std::env::var("DXL_LATENCY_MS").unwrap_or_else(|_| "2500".into());
     let reads = std::env::var("DXL_READS").unwrap_or_else(|_| DEFAULT_READS.to_string());
     let started = Instant::now();
-    let out = Command::new(&python)
+    let out = Command::new(python)
         .arg(workspace_root().join("dynamixel/tests/sdk_check.py"))
         .arg(&link)
         .args(["--latency-ms", &latency, "--reads", &reads])
