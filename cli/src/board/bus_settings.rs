@@ -1,4 +1,4 @@
-//! `vsa bus [--protocol 1|2] [--id N] [--baud B]`: the board's Dynamixel bus settings from
+//! `vsa bus [--protocol 1|2] [--id N] [--rate B]`: the board's Dynamixel bus settings from
 //! our own protocol (`protocol::Request::SetBus`), e.g. to switch a board the SDK left in
 //! Protocol 2.0 back to 1.0 without a Dynamixel client. The board applies them after its
 //! reply and stores them (once the motor is off); the control table's own registers (ID 3,
@@ -21,10 +21,11 @@ pub struct BusArgs {
     /// ID on the bus: 0–253 in Protocol 1.0, 0–252 in 2.0
     #[arg(long, value_name = "ID")]
     pub id: Option<String>,
-    /// Line rate, bit/s: one the protocol's Baud Rate register selects (1.0:
-    /// 2 000 000 / (n + 1); 2.0: 9600, 57600, 115200, 1000000, 2000000, …)
+    /// The bus's line rate, bit/s: one the protocol's Baud Rate register selects (1.0:
+    /// 2 000 000 / (n + 1); 2.0: 9600, 57600, 115200, 1000000, 2000000, …). Not --baud,
+    /// which is the host port's rate
     #[arg(long, value_name = "BAUD")]
-    pub baud: Option<String>,
+    pub rate: Option<String>,
 }
 
 /// Checks the arguments (errors name the argument); the board checks the rest.
@@ -47,9 +48,9 @@ pub fn plan(a: &BusArgs) -> CliResult<BusChange> {
         return Err(CliError::usage("bus --protocol", "0 is not 1 or 2"));
     }
     let id = number("bus --id", &a.id, u64::from(BUS_BROADCAST_ID) - 1)?;
-    let baud = number("bus --baud", &a.baud, u64::from(u32::MAX))?;
+    let baud = number("bus --rate", &a.rate, u64::from(u32::MAX))?;
     if baud == Some(0) {
-        return Err(CliError::usage("bus --baud", "0 bit/s"));
+        return Err(CliError::usage("bus --rate", "0 bit/s"));
     }
     let change = BusChange {
         protocol_version: protocol.and_then(|v| u8::try_from(v).ok()),
@@ -59,7 +60,7 @@ pub fn plan(a: &BusArgs) -> CliResult<BusChange> {
     if !change.is_valid() {
         return Err(CliError::usage(
             "bus",
-            "give at least one of --protocol, --id, --baud",
+            "give at least one of --protocol, --id, --rate",
         ));
     }
     Ok(change)
@@ -120,11 +121,11 @@ fn describe(c: &BusChange) -> String {
 mod tests {
     use super::*;
 
-    fn args(p: Option<&str>, id: Option<&str>, baud: Option<&str>) -> BusArgs {
+    fn args(p: Option<&str>, id: Option<&str>, rate: Option<&str>) -> BusArgs {
         BusArgs {
             protocol: p.map(Into::into),
             id: id.map(Into::into),
-            baud: baud.map(Into::into),
+            rate: rate.map(Into::into),
         }
     }
 
