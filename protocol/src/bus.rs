@@ -7,9 +7,6 @@ use serde::{Deserialize, Serialize};
 
 use crate::msg::{ErrorCode, Reply, Request};
 
-/// The broadcast ID, never a device's (Dynamixel Protocol 1.0 and 2.0).
-pub const BUS_BROADCAST_ID: u8 = 0xFE;
-
 /// A change of the Dynamixel bus settings ([`Request::SetBus`]): each field `None` keeps
 /// what is in force.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -17,8 +14,8 @@ pub const BUS_BROADCAST_ID: u8 = 0xFE;
 pub struct BusChange {
     /// Dynamixel protocol version, 1 or 2.
     pub protocol_version: Option<u8>,
-    /// ID on the bus, below [`BUS_BROADCAST_ID`] (the device checks its table's range:
-    /// 0–253 in Protocol 1.0, 0–252 in 2.0).
+    /// ID on the bus (the device checks its table's range: 0–253 in Protocol 1.0, 0–252
+    /// in 2.0; 0xFE is the broadcast ID).
     pub id: Option<u8>,
     /// The line's rate, bit/s (the device checks that the protocol's Baud Rate register
     /// selects it and that its UART makes it).
@@ -26,15 +23,12 @@ pub struct BusChange {
 }
 
 impl BusChange {
-    /// Whether the fields are within their ranges and at least one is given.
+    /// Whether at least one field is given, the protocol is 1 or 2 and the rate above 0
+    /// (the ID's range is the device's control table's).
     #[must_use]
     pub const fn is_valid(&self) -> bool {
         let protocol_ok = match self.protocol_version {
             Some(v) => v == 1 || v == 2,
-            None => true,
-        };
-        let id_ok = match self.id {
-            Some(id) => id < BUS_BROADCAST_ID,
             None => true,
         };
         let baud_ok = match self.baud_bps {
@@ -42,7 +36,7 @@ impl BusChange {
             None => true,
         };
         let any = self.protocol_version.is_some() || self.id.is_some() || self.baud_bps.is_some();
-        any && protocol_ok && id_ok && baud_ok
+        any && protocol_ok && baud_ok
     }
 }
 

@@ -100,7 +100,7 @@ mod msg;
 mod replay;
 mod sensors;
 
-pub use bus::{BusChange, BUS_BROADCAST_ID};
+pub use bus::BusChange;
 pub use frame::{
     decode_payload, encode, encode_raw, encode_telemetry, encode_to_vec, telemetry_frame, Decoder,
     EncodeError, Frame, FrameBuf, FrameError, Message, TelemetryFrameBuf, CRC,

@@ -64,7 +64,7 @@ fn in_range(r: &Request) -> bool {
                 && damping_unms_per_rad <= 100_000_000
                 && i64::from(torque_unm).abs() <= 100_000_000
         }
-        // Protocol 1 or 2, an ID below the broadcast 0xFE, a rate above 0; at least one.
+        // Protocol 1 or 2, a rate above 0, any ID (the device's check); at least one.
         Request::SetBus(c) => {
             let given = [
                 c.protocol_version.is_some(),
@@ -73,7 +73,6 @@ fn in_range(r: &Request) -> bool {
             ];
             given.contains(&true)
                 && c.protocol_version.is_none_or(|v| v == 1 || v == 2)
-                && c.id.is_none_or(|id| id <= 253)
                 && c.baud_bps.is_none_or(|b| b >= 1)
         }
         Request::Ping

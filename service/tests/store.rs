@@ -431,6 +431,12 @@ fn bus_settings_written_on_the_bus_or_with_set_bus_survive_a_power_cycle() {
         ..Default::default()
     });
     assert_eq!(b.ask(odd_rate), Reply::Error(ErrorCode::OutOfRange));
+    // ID 253 is an AX-12A ID, not an X-series one.
+    let x_id = Request::SetBus(protocol::BusChange {
+        id: Some(253),
+        ..Default::default()
+    });
+    assert_eq!(b.ask(x_id), Reply::Error(ErrorCode::OutOfRange));
 
     // Power cycle on the same flash: ID 7, Protocol 2.0, return delay 10.
     let want = BusSettings {

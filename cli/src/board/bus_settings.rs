@@ -6,7 +6,7 @@
 //! talk to one board only: our protocol has no addresses.
 
 use clap::Args;
-use client::protocol::{BusChange, Request, BUS_BROADCAST_ID};
+use client::protocol::{BusChange, Request};
 use client::{ErrorCode, Reply};
 
 use super::{out, Session};
@@ -47,7 +47,8 @@ pub fn plan(a: &BusArgs) -> CliResult<BusChange> {
     if protocol == Some(0) {
         return Err(CliError::usage("bus --protocol", "0 is not 1 or 2"));
     }
-    let id = number("bus --id", &a.id, u64::from(BUS_BROADCAST_ID) - 1)?;
+    // The largest ID of either protocol (1.0's; the board checks 2.0's 252).
+    let id = number("bus --id", &a.id, u64::from(dynamixel::v1::MAX_ID))?;
     let baud = number("bus --rate", &a.rate, u64::from(u32::MAX))?;
     if baud == Some(0) {
         return Err(CliError::usage("bus --rate", "0 bit/s"));
