@@ -101,12 +101,25 @@ impl Service {
     /// task calls this when it has nothing else to do). One attempt per change: a flash
     /// error leaves them in force until the next boot.
     pub fn store_bus_settings(&mut self, actuator: &mut impl Mutex<T = Actuator>) {
+        let _ = self.store_waiting_bus(actuator);
+    }
+
+    /// [`Service::store_bus_settings`], with what became of the attempt: `Ok` also when
+    /// nothing waits or the motor is on (then they wait for it to go off).
+    fn store_waiting_bus(
+        &mut self,
+        actuator: &mut impl Mutex<T = Actuator>,
+    ) -> Result<(), ErrorCode> {
         let state = self.settings.bus;
         let Some(live) = state.live.filter(|_| state.unsaved) else {
-            return;
+            return Ok(());
         };
-        if self.persist_bus(live, actuator) != Err(ErrorCode::NotAllowed) {
-            self.settings.bus.unsaved = false;
+        match self.persist_bus(live, actuator) {
+            Err(ErrorCode::NotAllowed) => Ok(()),
+            stored => {
+                self.settings.bus.unsaved = false;
+                stored
+            }
         }
     }
 }
@@ -132,15 +145,5 @@ pub(crate) fn set<M: Mutex<T = Actuator>>(
     }
     service.settings.bus.requested = true;
     service.bus_in_force(next);
-    if !service.settings.bus.unsaved {
-        return Ok(());
-    }
-    match service.persist_bus(next, dev.actuator) {
-        // Enabled: stored once the motor is off.
-        Err(ErrorCode::NotAllowed) => Ok(()),
-        r => {
-            service.settings.bus.unsaved = false;
-            r
-        }
-    }
+    service.store_waiting_bus(dev.actuator)
 }
