@@ -21,7 +21,7 @@
 //! | gear-side potentiometer                  | PA1  | ADC1_IN1                         | CN8 A1        |
 //! | host link TX (USB VCP)                   | PA2  | USART2_TX, AF7                   | ST-LINK VCP   |
 //! | host link RX (USB VCP)                   | PA3  | USART2_RX, AF7, DMA1 stream 5    | ST-LINK VCP   |
-//! | or (`dynamixel-ttl`) Dynamixel data      | PA2  | USART2 half duplex, AF7, open drain | CN9 D1 (SB13/SB14 open, docs/dynamixel.md) |
+//! | or (`dynamixel-ttl`) Dynamixel data      | PA2  | USART2 half duplex, AF7, open drain | CN10 35 (SB13/SB14 open, docs/dynamixel.md) |
 //! | independent µs clock                     | –    | TIM2 (internal)                  | –             |
 //! | current-sense trigger                    | –    | TIM1 CH4 (internal, no pin)      | –             |
 //! | watchdog                                 | –    | IWDG (LSI), 80 ms                | –             |
