@@ -135,6 +135,13 @@ pub enum Request {
         /// Feed-forward torque τ_ff, µN·m, |·| ≤ [`IMPEDANCE_TORQUE_MAX_UNM`].
         torque_unm: i32,
     },
+    /// Change the Dynamixel bus settings (protocol, ID, line rate; `vsa bus`). They take
+    /// effect after the reply and are stored (once the motor is off: programming the flash
+    /// stalls the control loop). Reply: [`Reply::Ok`]; [`ErrorCode::OutOfRange`] for
+    /// settings the device's control table or UART cannot take, [`ErrorCode::NotAllowed`]
+    /// on a device without a bus, [`ErrorCode::Storage`] if they could not be stored (in
+    /// force until the next boot all the same).
+    SetBus(crate::bus::BusChange),
 }
 
 /// PID gains, each in 10⁻³ of the controller's unit (duty ‰ out, link angle in rad), so
@@ -277,6 +284,7 @@ impl Request {
                     && damping_unms_per_rad <= IMPEDANCE_DAMPING_MAX_UNMS_PER_RAD
                     && torque_unm.unsigned_abs() <= IMPEDANCE_TORQUE_MAX_UNM
             }
+            Request::SetBus(change) => change.is_valid(),
         };
         if ok {
             Ok(())

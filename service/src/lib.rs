@@ -34,6 +34,7 @@ use protocol::{
 };
 use rtic_core::Mutex;
 
+mod bus_settings;
 pub mod dynamixel;
 mod impedance;
 pub mod line;
@@ -609,6 +610,10 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
 
     fn impedance(&mut self, target: i32, k: u32, d: u32, torque: i32) -> Result<(), ErrorCode> {
         impedance::apply(self, target, k, d, torque)
+    }
+
+    fn set_bus(&mut self, change: &protocol::BusChange) -> Result<(), ErrorCode> {
+        bus_settings::set(self, change)
     }
 
     fn hold(&mut self) -> Result<(), ErrorCode> {

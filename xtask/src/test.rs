@@ -75,6 +75,8 @@ pub fn run() -> Result<bool> {
             step(clippy),
         );
     }
+    let ttl = crate::dynamixel::clippy_ttl();
+    tally.record("clippy (firmware, nucleo-f446re dynamixel-ttl)", step(ttl));
 
     // The f32 port the benchmark compares with, on both emulated cores (the firmware's
     // clippy above lints the benchmark program itself).
