@@ -22,7 +22,10 @@
 //!   ω = ω_n: that setting costs only the losses. (√(k/J_l), the link alone on the beams,
 //!   is where the gear stands still instead; it is the anti-resonance.)
 //! * motor energy per cycle ∮V·i dt and its copper part ∮R·i² dt, J (module docs of
-//!   [`crate::figures::energy`]); the RMS tracking error; whether a live limit acted;
+//!   [`crate::figures::energy`]); the RMS tracking error of the motion about its mean, and
+//!   that mean (the offset: the start-up angle, read from the gear pot, misses the
+//!   deflection the load holds, the same at every cycle and not the task's doing); whether
+//!   a live limit acted;
 //! * the peak true beam root stress over the averaged cycles, its safety factor σ_allow/σ
 //!   and whether the task stays within the beams' capacity (σ ≤ σ_allow).
 //!
@@ -34,7 +37,7 @@
 //! # JSON (`--json`)
 //!
 //! `{"task": {...}, "rows": [{"length_m", "stiffness_nm_per_rad", "natural_frequency_hz",
-//! "energy_per_cycle_j", "copper_loss_j", "rms_error_rad", "limited", "peak_stress_pa",
+//! "energy_per_cycle_j", "copper_loss_j", "rms_error_rad", "offset_rad", "limited", "peak_stress_pa",
 //! "safety_factor", "within_capacity", "tracks"}], "best_length_m", "best_reason",
 //! "resonance_reachable", "resonance_length_m", "stiffness_needed_nm_per_rad",
 //! "stiffness_range_nm_per_rad": [soft, stiff]}`; a row the controller rejects has null
@@ -192,7 +195,7 @@ pub fn run(args: &AdviseArgs) -> CliResult<String> {
             natural_hz,
             run,
             within_capacity: run.map(|r| r.peak_stress_pa <= sigma),
-            tracks: run.map(|r| r.rms_error_rad <= TRACKING_TOLERANCE * motion_rms),
+            tracks: run.map(|r| r.periodic_rms_error_rad <= TRACKING_TOLERANCE * motion_rms),
         });
     }
     let advice = Advice::new(&design, &task, &cfg0, j_red, rows)?;
@@ -599,6 +602,7 @@ struct JsonRow {
     energy_per_cycle_j: Option<f64>,
     copper_loss_j: Option<f64>,
     rms_error_rad: Option<f64>,
+    offset_rad: Option<f64>,
     limited: Option<bool>,
     peak_stress_pa: Option<f64>,
     safety_factor: Option<f64>,
@@ -749,7 +753,8 @@ L = {} mm.",
                     natural_frequency_hz: r.natural_hz,
                     energy_per_cycle_j: r.run.map(|e| e.electrical_j),
                     copper_loss_j: r.run.map(|e| e.copper_j),
-                    rms_error_rad: r.run.map(|e| e.rms_error_rad),
+                    rms_error_rad: r.run.map(|e| e.periodic_rms_error_rad),
+                    offset_rad: r.run.map(|e| e.mean_error_rad),
                     limited: r.run.map(|e| e.limited),
                     peak_stress_pa: r.run.map(|e| e.peak_stress_pa),
                     safety_factor: r
@@ -788,6 +793,7 @@ simulated actuator), energies averaged over whole cycles.\n",
             ("energy/cycle", "J"),
             ("copper", "J"),
             ("RMS error", "mrad"),
+            ("offset", "mrad"),
             ("peak σ", "MPa"),
             ("safety", ""),
             ("within capacity", ""),
@@ -803,7 +809,8 @@ simulated actuator), energies averaged over whole cycles.\n",
                 o(r.natural_hz, 3),
                 o(e.map(|e| e.electrical_j), 4),
                 o(e.map(|e| e.copper_j), 4),
-                o(e.map(|e| e.rms_error_rad * 1e3), 3),
+                o(e.map(|e| e.periodic_rms_error_rad * 1e3), 3),
+                o(e.map(|e| e.mean_error_rad * 1e3), 3),
                 o(e.map(|e| e.peak_stress_pa * 1e-6), 4),
                 o(
                     e.filter(|e| e.peak_stress_pa > 0.0)

@@ -182,7 +182,7 @@ impl HandCheck {
 /// gear inertia and the beams' spring no longer need: (J_g·g + J_l)·A·ω² with
 /// g = 1 − J_l·ω²/k, (J_g + J_l)·A·ω² at the stiffest setting, 0 at resonance.
 ///
-/// Measured: 9.4 mJ saved (51.4 → 42.0 mJ per cycle) against the model's 10.4 mJ
+/// Measured: 9.4 mJ saved (51.4 → 42.1 mJ per cycle) against the model's 10.4 mJ
 /// (50.3 → 39.9 mJ); the simulated actuator's Coulomb gear friction and beam hysteresis,
 /// which the model leaves out, cost about 1–2 mJ more at each setting.
 #[test]
@@ -202,7 +202,7 @@ fn a_task_at_the_natural_frequency_saves_what_two_masses_predict() {
 
 /// The hand check, choice part: the advisor must pick the resonant setting. Ignored: the
 /// controller does not yet track the task there within the advisor's tolerance (RMS error
-/// ≤ 10 % of the motion's RMS, 1.06 mrad). Measured: 3.4 mrad at L = 15 mm (29 mrad before
+/// ≤ 10 % of the motion's RMS, 1.06 mrad). Measured: 3.1 mrad at L = 15 mm (29 mrad before
 /// the sine's two-mass feed-forward), 0.15 mrad at 5 mm; the rest is what the
 /// controller's model leaves out at the resonance, where no motor torque drives the motion
 /// and the losses decide the amplitude (Coulomb gear friction, beam hysteresis), and the

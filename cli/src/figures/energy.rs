@@ -176,6 +176,11 @@ pub struct CycleEnergy {
     pub mechanical_j: f64,
     /// RMS of reference − true link angle over the averaged cycles, rad.
     pub rms_error_rad: f64,
+    /// The mean of that error over the averaged cycles, rad: a constant offset, such as
+    /// the start-up angle's (read from the gear pot, it misses the deflection the load
+    /// holds), and the RMS about it, rad: how well the motion itself is followed.
+    pub mean_error_rad: f64,
+    pub periodic_rms_error_rad: f64,
     /// A live limit was active in the averaged cycles.
     pub limited: bool,
     /// Largest |true beam root stress| over the averaged cycles, Pa.
@@ -269,6 +274,7 @@ pub fn energy_of_commands(
     let from = m.settle_ticks + SKIP_TICKS;
     let mut e = CycleEnergy::default();
     let mut last_gear = 0.0f64;
+    let (mut e_sum, mut e_sq, mut e_n) = (0.0f64, 0.0f64, 0.0f64);
     let metrics = harness::run_script(&sc, script, |s| {
         if s.tick >= from {
             let v = f64::from(s.duty).clamp(-full, full) / full * vs;
@@ -282,6 +288,10 @@ pub fn energy_of_commands(
             e.limited |=
                 s.flags.torque_limited || s.flags.current_limited || s.flags.duty_saturated;
             e.peak_stress_pa = e.peak_stress_pa.max(f64::from(s.beam_stress_pa).abs());
+            let err = s.reference_rad - s.link_angle_rad;
+            e_sum += err;
+            e_sq += err * err;
+            e_n += 1.0;
         }
         last_gear = s.gear_angle_rad;
     })
@@ -293,6 +303,10 @@ pub fn energy_of_commands(
     e.copper_j /= n;
     e.mechanical_j /= n;
     e.rms_error_rad = metrics.rms_error_rad;
+    if e_n > 0.0 {
+        e.mean_error_rad = e_sum / e_n;
+        e.periodic_rms_error_rad = (e_sq / e_n - e.mean_error_rad.powi(2)).max(0.0).sqrt();
+    }
     Ok(Some(e))
 }
 
