@@ -7,7 +7,8 @@
 //! `model`: on purpose, a comparison is only fair between the same steps):
 //!
 //! * [`FloatController::step`] is `model::control::Controller::step` (encoder unwrapping,
-//!   back-EMF observer, blended torque estimate, reference, feed-forward, free-play
+//!   back-EMF observer, blended torque estimate, reference, feed-forward (the two-mass
+//!   inverse for a sine), free-play
 //!   compensation, PID, current/duty window, braking governor, anti-windup);
 //! * [`FloatSupervisor::check`] is `model::supervisor::Supervisor::check` (every check, in
 //!   the same order, with the same latch);
@@ -134,6 +135,12 @@ pub struct FloatSchedule {
     alpha: f32,
     ff_vel: f32,
     ff_acc: f32,
+    /// What a sine of ω takes off `ff_vel` and `ff_acc` per unit of c_ω = J_l·ω²/k
+    /// (`model::control::sine_feedforward`): (1000/V)·R·b_v/k_t and (1000/V)·R·J_g/k_t.
+    ff_sine_vel: f32,
+    ff_sine_acc: f32,
+    /// J_l/k, s² (c_ω = ω²·J_l/k).
+    jl_over_k: f32,
     ff_defl: f32,
     j_link: f32,
     inv_k: f32,
@@ -209,6 +216,9 @@ impl FloatSchedule {
             alpha: DT / (tau_f + DT),
             ff_vel: dpv * (ke + r * bv / kt),
             ff_acc: dpv * r * j / kt,
+            ff_sine_vel: dpv * r * bv / kt,
+            ff_sine_acc: dpv * r * j_g / kt,
+            jl_over_k: j_l / k,
             ff_defl: dpv * ke * 1000.0,
             j_link: j_l,
             inv_k: 1.0 / k,
@@ -464,6 +474,9 @@ pub struct FloatOutput {
 pub struct FloatController {
     s: FloatSchedule,
     traj: FloatTrajectory,
+    /// Feed-forward gains of the running reference (the two-mass inverse for a sine).
+    ff_vel: f32,
+    ff_acc: f32,
     started: bool,
     commanded: bool,
     enc_prev: u16,
@@ -490,6 +503,8 @@ impl FloatController {
     #[must_use]
     pub const fn new(s: FloatSchedule) -> Self {
         Self {
+            ff_vel: s.ff_vel,
+            ff_acc: s.ff_acc,
             s,
             traj: FloatTrajectory::new(0.0),
             started: false,
@@ -515,12 +530,23 @@ impl FloatController {
 
     /// Starts a trajectory command.
     pub fn command(&mut self, cmd: Command) {
+        let s = &self.s;
+        (self.ff_vel, self.ff_acc) = match cmd {
+            Command::Sine { frequency, .. } => {
+                let w = i32f32(frequency.to_bits());
+                let c = s.jl_over_k * w * w;
+                (s.ff_vel - c * s.ff_sine_vel, s.ff_acc - c * s.ff_sine_acc)
+            }
+            _ => (s.ff_vel, s.ff_acc),
+        };
         self.traj.command(cmd);
         self.commanded = true;
     }
 
     /// Forgets the loop state (as `Controller::reset`).
     pub fn reset(&mut self) {
+        self.ff_vel = self.s.ff_vel;
+        self.ff_acc = self.s.ff_acc;
         self.started = false;
         self.commanded = false;
         self.w_link = 0.0;
@@ -628,7 +654,7 @@ impl FloatController {
         self.w_ref += s.alpha * (r.velocity - self.w_ref);
 
         // --- feed-forward ---
-        let u_ff = s.ff_vel * r.velocity + s.ff_acc * r.acceleration;
+        let u_ff = self.ff_vel * r.velocity + self.ff_acc * r.acceleration;
         let u_i = self.integ;
         let tau_ref = s.j_link * r.acceleration + s.torque_per_duty * u_i;
         let side = (s.fp_slope * tau_ref).clamp(-s.free_play, s.free_play);

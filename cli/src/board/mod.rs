@@ -5,6 +5,7 @@
 //! exits with 2 and sends nothing); a refusal, a timeout or a lost connection exits with 1.
 
 pub mod bus;
+mod bus_settings;
 mod config;
 mod impedance;
 mod quantities;
@@ -106,6 +107,16 @@ pub struct ConnectArgs {
         help_heading = "Board connection"
     )]
     pub qemu_flash: Option<PathBuf>,
+    /// Makes the emulated board's simulated actuator off-nominal, e.g.
+    /// power-up-angle=0.8rad (repeatable; the names of `vsa simulate --plant`)
+    #[arg(
+        long,
+        global = true,
+        value_name = "NAME=VALUE",
+        allow_hyphen_values = true,
+        help_heading = "Board connection"
+    )]
+    pub qemu_plant: Vec<String>,
     /// Reply timeout, e.g. 2s [default: 1s]
     #[arg(
         long,
@@ -129,6 +140,7 @@ impl ConnectArgs {
             (self.qemu_log.is_some(), "--qemu-log"),
             (self.qemu_load.is_some(), "--qemu-load"),
             (self.qemu_flash.is_some(), "--qemu-flash"),
+            (!self.qemu_plant.is_empty(), "--qemu-plant"),
             (self.timeout.is_some(), "--timeout"),
         ]
         .into_iter()
@@ -169,6 +181,7 @@ impl ConnectArgs {
                 (self.qemu_log.is_some(), "--qemu-log"),
                 (self.qemu_load.is_some(), "--qemu-load"),
                 (self.qemu_flash.is_some(), "--qemu-flash"),
+                (!self.qemu_plant.is_empty(), "--qemu-plant"),
             ] {
                 if given {
                     return Err(CliError::usage(name, "only applies to --qemu"));
@@ -214,12 +227,18 @@ impl ConnectArgs {
             }
             None => None,
         };
+        for o in &self.qemu_plant {
+            // The one parser of the overrides; the firmware parses the same text again.
+            plant::overrides::Override::parse(o)
+                .map_err(|e| CliError::usage("--qemu-plant", format!("`{o}`: {e}")))?;
+        }
         Ok(QemuTarget {
             board,
             elf: self.elf.clone(),
             log: self.qemu_log.clone(),
             load_mnm,
             flash,
+            plant: self.qemu_plant.clone(),
         })
     }
 
@@ -242,6 +261,8 @@ pub struct QemuTarget {
     load_mnm: i32,
     /// `--flash` of the served firmware.
     flash: Option<String>,
+    /// `--plant NAME=VALUE` of the served firmware, checked.
+    plant: Vec<String>,
 }
 
 impl QemuTarget {
@@ -293,6 +314,9 @@ impl QemuTarget {
         };
         if let Some(f) = &self.flash {
             firmware_args.extend(["--flash".to_owned(), f.clone()]);
+        }
+        for o in &self.plant {
+            firmware_args.extend(["--plant".to_owned(), o.clone()]);
         }
         QemuBoard::start(self.board, &elf, &firmware_args, sink)
             .map(|(board, client)| (adopt(board), client))
@@ -496,6 +520,8 @@ pub enum BoardCommand {
     Config(config::ConfigCommand),
     /// The faults latched now, or with --log the fault log kept in flash
     Faults(config::FaultsArgs),
+    /// The Dynamixel bus settings, e.g. `bus --protocol 1` or `bus --id 4 --baud 57600`
+    Bus(bus_settings::BusArgs),
 }
 
 /// Arguments of `gains`.
@@ -583,6 +609,7 @@ enum Action {
     },
     Config(config::ConfigCommand),
     Faults(config::FaultsArgs),
+    Bus(client::protocol::BusChange),
 }
 
 /// Checks a command's arguments (errors name the command and the argument).
@@ -613,6 +640,7 @@ fn plan(cmd: &BoardCommand) -> CliResult<Action> {
         BoardCommand::Config(c) => Action::Config(*c),
         BoardCommand::Faults(f) => Action::Faults(*f),
         BoardCommand::Impedance(a) => Action::Impedance(impedance::plan(a)?),
+        BoardCommand::Bus(a) => Action::Bus(bus_settings::plan(a)?),
         BoardCommand::Gains(g) => Action::Gains(plan_gains(g)?),
         BoardCommand::Limits(l) => Action::Limits(plan_limits(l)?),
         BoardCommand::Wait { duration } => {
@@ -785,6 +813,7 @@ fn exec(action: &Action, s: &mut Session) -> CliResult<()> {
         Action::Config(cmd) => config::config(c, *cmd),
         Action::Faults(args) => config::faults(c, *args),
         Action::Impedance(p) => return impedance::run(s, p),
+        Action::Bus(c) => return bus_settings::run(s, c),
     };
     match r {
         Ok(text) => {

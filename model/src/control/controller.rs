@@ -7,6 +7,7 @@ use super::config::Config;
 use super::error::ControlError;
 use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Q16_ONE};
 use super::schedule::Schedule;
+use super::sine_feedforward::FeedForward;
 use super::trajectory::{Command, Reference, Trajectory};
 use crate::design::Design;
 use crate::sensors::{
@@ -108,6 +109,8 @@ pub struct Controller {
     config: Config,
     sched: Schedule,
     traj: Trajectory,
+    /// Feed-forward gains of the running reference (the two-mass inverse for a sine).
+    ff: FeedForward,
     started: bool,
     commanded: bool,
     enc_prev: u16,
@@ -154,6 +157,7 @@ impl Controller {
         Ok(Controller {
             design: *design,
             config: *config,
+            ff: FeedForward::rigid(&sched),
             sched,
             traj: Trajectory::new(Angle::ZERO),
             started: false,
@@ -182,9 +186,11 @@ impl Controller {
     /// controller state (integrator, filters, trajectory) carries over.
     ///
     /// # Errors
-    /// As [`Schedule::new`].
+    /// As [`Schedule::new`]; [`ControlError::Overflow`] if a running sine's feed-forward
+    /// does not fit its format.
     pub fn configure(&mut self, config: &Config) -> Result<(), ControlError> {
         let sched = Schedule::new(&self.design, config)?;
+        self.ff = self.ff.reconfigure(&sched, config)?;
         self.sched = sched;
         self.config = *config;
         self.defl_valid = false;
@@ -215,7 +221,9 @@ impl Controller {
     /// # Errors
     /// [`ControlError::TrajectoryOutOfRange`]; the running trajectory is untouched.
     pub fn command(&mut self, cmd: Command) -> Result<(), ControlError> {
+        let ff = FeedForward::for_command(&self.sched, &self.config, &cmd)?;
         self.traj.command(cmd)?;
+        self.ff = ff;
         self.commanded = true;
         Ok(())
     }
@@ -223,6 +231,7 @@ impl Controller {
     /// Forgets the loop state (integrator, filters, encoder unwrapping); the next step
     /// holds the link where it is.
     pub fn reset(&mut self) {
+        self.ff = FeedForward::rigid(&self.sched);
         self.started = false;
         self.commanded = false;
         self.w_link = 0;
@@ -369,10 +378,11 @@ impl Controller {
             .saturating_add(s.alpha.apply(r.velocity_q16.saturating_sub(self.w_ref)));
 
         // --- feed-forward: trajectory, then free play and compliance ---
-        let u_ff = s
-            .ff_vel
+        let u_ff = self
+            .ff
+            .vel
             .apply(r.velocity_q16)
-            .saturating_add(s.ff_acc.apply(r.acceleration_q16));
+            .saturating_add(self.ff.acc.apply(r.acceleration_q16));
         let u_i = q32_to_q16(self.integ);
         let tau_ref = s
             .j_link
