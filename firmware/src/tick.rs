@@ -84,8 +84,8 @@ impl ControlLoop {
         let plan = self.hooks.before_step(&mut self.io, &mut actuator.servo);
         let t1 = SYST::get_current();
         let input = self.io.read_inputs();
-        let out = actuator.servo.tick(&input);
-        self.io.drive(actuator.open_loop.demand(&input, &out));
+        let (out, demand) = actuator.control(&input);
+        self.io.drive(demand);
         let t2 = SYST::get_current();
         let sampled = actuator.publish_tick(&input, &out, telemetry);
         if plan.overrun {

@@ -134,6 +134,17 @@ pub enum Request {
         /// Feed-forward torque τ_ff, µN·m, |·| ≤ [`IMPEDANCE_TORQUE_MAX_UNM`].
         torque_unm: i32,
     },
+    /// Start (`start: true`) the calibration sequence of a real build (docs/calibration.md)
+    /// from the disabled state, or stop it (`false`: the motor off). Refused with
+    /// [`ErrorCode::NotAllowed`] unless disabled with no fault latched; progress in
+    /// [`Status::calibration`], the result by [`Request::GetCalibration`]. Reply:
+    /// [`Reply::Ok`].
+    Calibrate {
+        /// Start (`true`) or stop (`false`).
+        start: bool,
+    },
+    /// Reply: [`Reply::Calibration`].
+    GetCalibration,
 }
 
 /// PID gains, each in 10⁻³ of the controller's unit (duty ‰ out, link angle in rad), so
@@ -233,7 +244,9 @@ impl Request {
             | Request::Save
             | Request::Load
             | Request::FactoryReset
-            | Request::FaultsLog { .. } => true,
+            | Request::FaultsLog { .. }
+            | Request::Calibrate { .. }
+            | Request::GetCalibration => true,
             Request::SetClutchLength { length_um } => {
                 (CLUTCH_MIN_UM..=CLUTCH_MAX_UM).contains(&length_um)
             }
@@ -363,6 +376,8 @@ pub enum Reply {
         /// The entry asked for.
         entry: Option<LoggedFault>,
     },
+    /// Reply to [`Request::GetCalibration`].
+    Calibration(crate::CalibrationReport),
 }
 
 /// A latched fault as the settings store's fault log keeps it (it survives resets).
@@ -592,6 +607,8 @@ pub struct Status {
     /// nothing stored, from the defaults): `save` would change what the next boot loads.
     /// `false` on a device without a store.
     pub differs_from_stored: bool,
+    /// Where the calibration sequence is ([`Request::Calibrate`]).
+    pub calibration: crate::CalibrationProgress,
 }
 
 /// One telemetry sample (taken at a control tick).

@@ -34,6 +34,7 @@ use protocol::{
 };
 use rtic_core::Mutex;
 
+pub mod calibrate;
 pub mod dynamixel;
 mod impedance;
 pub mod line;
@@ -230,6 +231,8 @@ pub struct Actuator {
     pub telemetry: TelemetryGate,
     /// The bring-up mode: the open-loop nudge and the last raw readings.
     pub open_loop: sensors::OpenLoop,
+    /// The calibration sequence and the sensor correction it gave.
+    pub calibration: calibrate::Calibrator,
     limits: LimitFlags,
     /// Measured link angle at the last tick, I32F32 rad (a sine's centre).
     link_angle: i64,
@@ -247,6 +250,7 @@ impl Actuator {
             servo,
             telemetry: TelemetryGate::default(),
             open_loop: sensors::OpenLoop::default(),
+            calibration: calibrate::Calibrator::default(),
             limits: LimitFlags::NONE,
             link_angle: 0,
             link_velocity: 0,
@@ -346,6 +350,7 @@ impl Actuator {
             telemetry_dropped: self.telemetry.dropped(),
             protocol_errors: 0,
             differs_from_stored: false,
+            calibration: self.calibration.progress(),
         }
     }
 }
@@ -533,12 +538,18 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
 
 impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
     fn enable(&mut self) -> Result<(), ErrorCode> {
-        self.actuator.lock(|a| a.servo.enable().map_err(refused))
+        self.actuator.lock(|a| {
+            if a.calibration.running() {
+                return Err(ErrorCode::Busy);
+            }
+            a.servo.enable().map_err(refused)
+        })
     }
 
     fn disable(&mut self) -> Result<(), ErrorCode> {
         self.actuator.lock(|a| {
             a.open_loop.stop();
+            a.calibration.abort();
             a.servo.disable();
         });
         Ok(())
@@ -687,8 +698,19 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
 
     fn nudge(&mut self, duty_permille: i16, duration_ms: u16) -> Result<(), ErrorCode> {
         self.actuator.lock(|a| {
+            if a.calibration.running() {
+                return Err(ErrorCode::Busy);
+            }
             let state = a.servo.state();
             a.open_loop.start(state, duty_permille, duration_ms)
         })
+    }
+
+    fn calibrate(&mut self, start: bool) -> Result<(), ErrorCode> {
+        ServiceDevice::calibrate(self, start)
+    }
+
+    fn calibration(&mut self) -> Result<protocol::CalibrationReport, ErrorCode> {
+        Ok(self.calibration_report())
     }
 }

@@ -177,6 +177,7 @@ impl<'q, W: Write> Link<'q, W> {
     /// the first call after it began (the firmware calls this every control tick).
     pub fn poll(&mut self, actuator: &mut impl Mutex<T = Actuator>) {
         self.service.log_latched_fault(actuator);
+        self.service.finish_calibration(actuator);
         loop {
             if let Some(byte) = self.rx.dequeue() {
                 match self.dynamixel.as_mut() {

@@ -5,6 +5,7 @@
 //! exits with 2 and sends nothing); a refusal, a timeout or a lost connection exits with 1.
 
 pub mod bus;
+mod calibrate;
 mod config;
 mod impedance;
 mod quantities;
@@ -496,6 +497,9 @@ pub enum BoardCommand {
     Config(config::ConfigCommand),
     /// The faults latched now, or with --log the fault log kept in flash
     Faults(config::FaultsArgs),
+    /// Calibrate a real build (motor disabled): polarity, sensor directions and offsets,
+    /// motor resistance and back-EMF, link inertia; stored on the board (`--show`: print it)
+    Calibrate(calibrate::CalibrateArgs),
 }
 
 /// Arguments of `gains`.
@@ -583,6 +587,7 @@ enum Action {
     },
     Config(config::ConfigCommand),
     Faults(config::FaultsArgs),
+    Calibrate(calibrate::CalibrateArgs),
 }
 
 /// Checks a command's arguments (errors name the command and the argument).
@@ -612,6 +617,7 @@ fn plan(cmd: &BoardCommand) -> CliResult<Action> {
         BoardCommand::Hold => Action::Hold,
         BoardCommand::Config(c) => Action::Config(*c),
         BoardCommand::Faults(f) => Action::Faults(*f),
+        BoardCommand::Calibrate(a) => Action::Calibrate(*a),
         BoardCommand::Impedance(a) => Action::Impedance(impedance::plan(a)?),
         BoardCommand::Gains(g) => Action::Gains(plan_gains(g)?),
         BoardCommand::Limits(l) => Action::Limits(plan_limits(l)?),
@@ -785,6 +791,7 @@ fn exec(action: &Action, s: &mut Session) -> CliResult<()> {
         Action::Config(cmd) => config::config(c, *cmd),
         Action::Faults(args) => config::faults(c, *args),
         Action::Impedance(p) => return impedance::run(s, p),
+        Action::Calibrate(a) => return calibrate::run(s, a),
     };
     match r {
         Ok(text) => {
@@ -1025,6 +1032,7 @@ fn status_text(st: &Status) -> String {
             "stored config",
             config::stored_line(st.differs_from_stored).to_string(),
         ),
+        ("calibration", calibrate::progress_text(st.calibration)),
     ];
     let mut s = String::new();
     for (k, v) in rows {
