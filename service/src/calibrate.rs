@@ -132,6 +132,10 @@ impl Actuator {
         // The raw readings for `vsa sensors` (no nudge runs: the start refused it).
         let _ = self.open_loop.demand(input, &out);
         let demand = self.calibration.step(input, &out);
+        self.open_loop.note_duty(match demand {
+            BridgeDemand::Drive(d) => d,
+            BridgeDemand::Off => 0,
+        });
         (out, demand)
     }
 }

@@ -10,6 +10,7 @@
 
 mod bench;
 mod board;
+mod calibrate;
 mod checks;
 mod cmd;
 mod defmt_log;

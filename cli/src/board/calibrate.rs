@@ -86,10 +86,13 @@ pub fn run(s: &mut Session, a: &CalibrateArgs) -> CliResult<()> {
         ));
     }
     let failure = failure.map(failure_of);
+    // The board's word that the sequence's drive has ended: the open-loop duty it
+    // applied in its last tick.
+    let duty = applied_duty(s)?;
     out(&if a.json {
-        json(cal.as_ref(), failure)
+        json(cal.as_ref(), failure, duty)
     } else {
-        text(cal.as_ref(), failure)
+        text(cal.as_ref(), failure, duty)
     });
     match failure {
         Some((name, message)) => Err(CliError::runtime(format!(
@@ -142,6 +145,18 @@ fn calibrate(s: &mut Session, quiet: bool) -> CliResult<CalibrationReport> {
     }
 }
 
+/// The open-loop duty the board applied in its last tick, ‰.
+fn applied_duty(s: &mut Session) -> CliResult<i16> {
+    match s.client.request(client::Request::GetSensors) {
+        Ok(client::Reply::Sensors(r)) => Ok(r.nudge_duty_permille),
+        Ok(reply) => Err(s.fail(&client::Error::UnexpectedReply {
+            request: "get-sensors",
+            reply,
+        })),
+        Err(e) => Err(s.fail(&e)),
+    }
+}
+
 /// The failure's name and message from its wire code.
 fn failure_of(code: u8) -> (&'static str, &'static str) {
     Failure::from_code(code).map_or(
@@ -159,12 +174,13 @@ fn opt(v: Option<f64>) -> serde_json::Value {
 }
 
 /// The JSON object (one line).
-fn json(cal: Option<&Calibration>, failure: Option<(&str, &str)>) -> String {
+fn json(cal: Option<&Calibration>, failure: Option<(&str, &str)>, duty: i16) -> String {
     let f = |g: fn(&Calibration) -> f64| opt(cal.map(g));
     let stiffness = cal.and_then(|c| c.stiffness_mnm_per_rad);
     let v = serde_json::json!({
         "status": failure.map_or("ok", |(name, _)| name),
         "message": failure.map(|(_, m)| m),
+        "motor_duty_permille": duty,
         "motor_polarity": f(|c| c.motor_polarity.into()),
         "encoder_direction": f(|c| c.encoder_direction.into()),
         "pot_direction": f(|c| c.pot_direction.into()),
@@ -186,10 +202,18 @@ fn sign_text(v: i8, plus: &str, minus: &str) -> String {
 }
 
 /// The result as aligned `name  value` lines.
-fn text(cal: Option<&Calibration>, failure: Option<(&str, &str)>) -> String {
+fn text(cal: Option<&Calibration>, failure: Option<(&str, &str)>, duty: i16) -> String {
     let mut s = String::new();
     if let Some((name, message)) = failure {
-        let _ = writeln!(s, "calibration failed: {name}\n{message}\nthe motor is off");
+        let _ = writeln!(s, "calibration failed: {name}\n{message}");
+        if duty == 0 {
+            s.push_str("the motor is off\n");
+        } else {
+            let _ = writeln!(
+                s,
+                "the board still drives the motor at {duty} ‰: disable it"
+            );
+        }
         return s;
     }
     let Some(c) = cal else {
@@ -279,7 +303,7 @@ mod tests {
 
     #[test]
     fn json_has_every_field_in_si_units() {
-        let v: serde_json::Value = serde_json::from_str(&json(Some(&CAL), None)).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&json(Some(&CAL), None, 0)).unwrap();
         assert_eq!(v["status"], "ok");
         assert_eq!(v["motor_polarity"], -1.0);
         assert_eq!(v["current_offset_counts"], -250.0);
@@ -295,11 +319,13 @@ mod tests {
     fn a_failure_is_named_with_its_message() {
         let code = Failure::EncoderDead.code();
         let f = failure_of(code);
-        let v: serde_json::Value = serde_json::from_str(&json(None, Some(f))).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&json(None, Some(f), 0)).unwrap();
         assert_eq!(v["status"], "encoder-dead");
         assert!(v["message"].as_str().unwrap().contains("link encoder"));
         assert!(v["resistance_ohm"].is_null());
-        assert!(text(None, Some(f)).contains("the motor is off"));
+        assert_eq!(v["motor_duty_permille"], 0);
+        assert!(text(None, Some(f), 0).contains("the motor is off"));
+        assert!(text(None, Some(f), 80).contains("still drives"));
         assert_eq!(failure_of(0).0, "unknown");
     }
 }
