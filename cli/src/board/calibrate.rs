@@ -45,7 +45,9 @@ fn phase_name(phase: u8) -> &'static str {
 /// The status's calibration line.
 pub fn progress_text(p: CalibrationProgress) -> String {
     match p {
-        CalibrationProgress::Idle => "not run since boot".to_string(),
+        CalibrationProgress::Idle => {
+            "not run since boot (`vsa calibrate --show`: the one in force)".to_string()
+        }
         CalibrationProgress::Running { phase, percent } => {
             format!(
                 "running, {percent} % (phase {phase}: {})",
