@@ -202,6 +202,20 @@ impl Service {
     }
 }
 
+impl Service {
+    /// The Dynamixel Calibration State register's value (`dynamixel::table::calibration`):
+    /// running, failed (the last run), calibrated (a calibration in force) or none.
+    pub fn calibration_register(&self, actuator: &mut impl Mutex<T = Actuator>) -> i32 {
+        use dynamixel::table::calibration as reg;
+        match actuator.lock(|a| a.calibration.progress) {
+            CalibrationProgress::Running { .. } => reg::RUNNING,
+            CalibrationProgress::Failed { .. } => reg::FAILED,
+            _ if self.calibration().is_some() => reg::CALIBRATED,
+            _ => reg::UNCALIBRATED,
+        }
+    }
+}
+
 impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
     /// [`protocol::Request::Calibrate`].
     pub(crate) fn calibrate(&mut self, start: bool) -> Result<(), ErrorCode> {
