@@ -36,6 +36,11 @@ pub struct RunConfig {
     pub flash_cut_after: Option<u32>,
     /// `--dxl-id N`: the board's ID on the Dynamixel bus (0–252; default 1).
     pub dxl_id: u8,
+    /// `--plant NAME=VALUE` (repeatable): the simulated actuator made off-nominal
+    /// (`plant::overrides`, its one parser), e.g. `power-up-angle=0.8` for a link powered
+    /// up away from the pot's centre with the encoder at zero.
+    #[cfg(feature = "qemu")]
+    pub plant: plant::overrides::Overrides,
 }
 
 /// Longest `--flash` path, bytes.
@@ -71,13 +76,15 @@ impl RunConfig {
             #[cfg(feature = "qemu")]
             flash_cut_after: None,
             dxl_id: 1,
+            #[cfg(feature = "qemu")]
+            plant: plant::overrides::Overrides::NONE,
         }
     }
 
     /// Parses `--scenario NAME`, `--serve`, `--seconds N` (stop after N s even if the
     /// scenario has not ended), `--idle wfi|spin`, `--inject-panic-at-tick N`,
-    /// `--inject-hardfault-at-tick N`, `--icount-shift N`, `--load-mnm N`, `--flash PATH`
-    /// and `--flash-cut-after N`.
+    /// `--inject-hardfault-at-tick N`, `--icount-shift N`, `--load-mnm N`, `--flash PATH`,
+    /// `--flash-cut-after N` and `--plant NAME=VALUE`.
     pub fn parse<'a>(
         args: impl Iterator<Item = &'a str>,
         default_idle: IdleMode,
@@ -154,6 +161,14 @@ impl RunConfig {
                     }
                     config.flash_cut_after = Some(n);
                 }
+                #[cfg(feature = "qemu")]
+                "--plant" => {
+                    let item = args.next().ok_or(RunConfigError::MissingValue)?;
+                    config
+                        .plant
+                        .push_str(item)
+                        .map_err(|_| RunConfigError::BadPlant)?;
+                }
                 "--dxl-id" => {
                     let value = args.next().ok_or(RunConfigError::MissingValue)?;
                     config.dxl_id = value
@@ -208,4 +223,6 @@ pub enum RunConfigError {
     UnknownArgument,
     /// `--dxl-id` is not 0..=252.
     BadDynamixelId,
+    /// `--plant` is not `NAME=VALUE` of a known parameter within its range.
+    BadPlant,
 }

@@ -1,7 +1,8 @@
 //! One period of the 1 kHz control tick: the board's hooks first (on the emulated boards
 //! the simulated actuator advances; on the real board the watchdog is fed), then the control
-//! step: sensors (through the driver traits, `drivers::tick_io`) → servo (controller +
-//! supervisor, `model::servo`) → H-bridge driver, then the missed-deadline check.
+//! step: sensors (through the driver traits, `drivers::tick_io`) → the sensor-correction
+//! layer and the servo (controller + supervisor; `service::Actuator::tick`,
+//! `model::calibration::pipeline`) → H-bridge driver, then the missed-deadline check.
 //!
 //! The control step (sensor reads, `Servo::tick`, the bridge writes) is timed on its own,
 //! separately from the hooks' part (the plant on the emulated boards), in SysTick counts;
@@ -83,10 +84,11 @@ impl ControlLoop {
     ) -> TickResult {
         let plan = self.hooks.before_step(&mut self.io, &mut actuator.servo);
         let t1 = SYST::get_current();
-        let input = self.io.read_inputs();
-        let (out, demand) = actuator.control(&input);
+        let raw = self.io.read_inputs();
+        let (out, demand) = actuator.control(&raw);
         self.io.drive(demand);
         let t2 = SYST::get_current();
+        let input = *actuator.pipeline.input();
         let sampled = actuator.publish_tick(&input, &out, telemetry);
         if plan.overrun {
             busy_wait_past_deadline();

@@ -52,6 +52,8 @@ pub enum ServoError {
     Faulted,
     /// The impedance command was refused.
     Impedance(ImpedanceError),
+    /// The sensor correction was rejected (`crate::calibration::pipeline`).
+    Correction(crate::calibration::correction::CorrectionError),
 }
 
 impl core::fmt::Display for ServoError {
@@ -61,6 +63,7 @@ impl core::fmt::Display for ServoError {
             ServoError::Supervisor(e) => write!(f, "supervisor: {e}"),
             ServoError::Faulted => f.write_str("a fault is latched (clear it first)"),
             ServoError::Impedance(e) => write!(f, "impedance: {e}"),
+            ServoError::Correction(e) => write!(f, "sensor correction: {e}"),
         }
     }
 }
@@ -350,9 +353,40 @@ impl Servo {
         self.was_off = true;
     }
 
+    /// A tick without trustworthy readings (the sensor-correction layer's boot alignment,
+    /// `crate::calibration::pipeline`): counted like any tick, the motor off, no controller
+    /// step and no checks (the readings are not yet in the servo's frame).
+    pub fn tick_off(&mut self) -> TickOutput {
+        self.tick = self.tick.wrapping_add(1);
+        self.was_off = true;
+        TickOutput {
+            tick: self.tick,
+            bridge: BridgeDemand::Off,
+            control: Output::default(),
+            new_fault: None,
+            state: self.state,
+        }
+    }
+
+    /// The readings' frame changed (the encoder was aligned to the pot again): the
+    /// controller restarts holding the link where the next reading puts it and the
+    /// supervisor forgets the sensor history, as after [`Servo::install_prepared`].
+    pub fn sensors_realigned(&mut self) {
+        self.impedance = None;
+        self.controller.reset();
+        self.supervisor.restart_estimates();
+    }
+
     /// One 1 kHz tick: controller step on the readings, supervisor checks, and the bridge
     /// demand (off unless enabled and no fault latched, including one found now).
     pub fn tick(&mut self, input: &TickInput) -> TickOutput {
+        self.tick_signed(input, false)
+    }
+
+    /// [`Servo::tick`] for a motor wired the other way round when `reversed`: the bridge
+    /// demand's duty is the controller's negated (`control.duty` stays the controller's).
+    /// The sensor-correction layer's per-tick call (`crate::calibration::pipeline`).
+    pub fn tick_signed(&mut self, input: &TickInput, reversed: bool) -> TickOutput {
         self.tick = self.tick.wrapping_add(1);
         let m = Measurements {
             link_encoder: input.link_encoder,
@@ -384,7 +418,11 @@ impl Servo {
             self.fault();
         }
         let bridge = if self.state == ServoState::Enabled {
-            BridgeDemand::Drive(control.duty)
+            BridgeDemand::Drive(if reversed {
+                control.duty.saturating_neg()
+            } else {
+                control.duty
+            })
         } else {
             BridgeDemand::Off
         };

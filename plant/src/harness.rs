@@ -14,6 +14,8 @@
 //! the integrator), give the command, run `run_ticks` more. Metrics use the plant's *true*
 //! link angle and beam stress.
 
+use model::calibration::correction::SensorCorrection;
+use model::calibration::pipeline::Pipeline;
 use model::control::{Command, Config, ControlError, Flags, ImpedanceCommand, Schedule};
 use model::sensors::encoder_delta;
 use model::servo::{BridgeDemand, Servo, ServoError, TickInput};
@@ -81,6 +83,10 @@ pub struct Scenario {
     /// Gravity arm m·g·l of the link, N·m (0: none): the link hangs straight down at
     /// 0 rad, gravity pulls it back with −m·g·l·sin θ ([`LoadConfig::gravity_mgd_nm`]).
     pub gravity_nm: f32,
+    /// What the servo's correction layer is configured with (the wiring and sensors as
+    /// calibration found them; [`SensorCorrection::NOMINAL`] for the nominal build):
+    /// raw readings → [`Pipeline`] → servo, as on the boards.
+    pub correction: SensorCorrection,
 }
 
 impl Scenario {
@@ -105,6 +111,7 @@ impl Scenario {
             supervision: SupervisorConfig::DEFAULT,
             impedance: None,
             gravity_nm: 0.0,
+            correction: SensorCorrection::NOMINAL,
         }
     }
 }
@@ -493,6 +500,18 @@ pub fn allowable_stress_pa(design: &Design) -> f64 {
 /// What the H-bridge does when the servo turns the motor off (disabled or faulted).
 pub const OFF_BRIDGE: BridgeCommand = BridgeCommand::Coast;
 
+/// The servo's `target` (its frame, rad) in the plant's true frame, from the servo's
+/// measured link angle and the true one at the same tick: the sensor-correction layer set
+/// the servo's frame at power-up from the pot (within the free play and the pot's error,
+/// docs/calibration.md), a whole number of encoder counts away from the true frame, so
+/// the offset is rounded to whole counts. The step metrics thus measure how well the servo
+/// reaches what it was told, not the pot's accuracy.
+#[must_use]
+pub fn target_in_true_frame(target: f64, measured: f64, true_angle: f64) -> f64 {
+    let shift = libm::round((true_angle - measured) / ENCODER_COUNT_RAD) * ENCODER_COUNT_RAD;
+    target + shift
+}
+
 /// Runs `sc` — the servo (controller under the supervisor, enabled from the first tick)
 /// against the simulated actuator — calling `on_sample` once per tick, and returns the
 /// metrics. After a fault the bridge is off ([`OFF_BRIDGE`]) and the run goes on.
@@ -519,6 +538,7 @@ where
 {
     let mut plant = plant_for(sc).map_err(ServoError::Control)?;
     let mut servo = Servo::new(&sc.design, &sc.config, &sc.supervision)?;
+    let mut pipeline = Pipeline::new(&sc.correction).map_err(ServoError::Correction)?;
     servo.enable()?;
     let mut readings = plant.readings();
     let mut rec = Recorder::new(
@@ -551,17 +571,25 @@ where
                 Err(e) => return Err(e),
             }
         }
-        let out = servo.tick(&TickInput {
-            link_encoder: readings.link_encoder,
-            gear_pot: sc.use_pot.then_some(readings.gear_pot),
-            current_adc: readings.current_adc,
-            read_error: None,
-        });
+        let out = pipeline.tick(
+            &mut servo,
+            &TickInput {
+                link_encoder: readings.link_encoder,
+                gear_pot: sc.use_pot.then_some(readings.gear_pot),
+                current_adc: readings.current_adc,
+                read_error: None,
+            },
+        );
         if tick == sc.settle_ticks {
             let target = servo
                 .impedance_command()
                 .map_or(servo.controller().trajectory().target(), |c| c.target);
-            rec.on_command(plant.state().link_angle_rad, fx32(target.to_bits()));
+            let true_angle = plant.state().link_angle_rad;
+            let measured = fx32(out.control.link_angle.to_bits());
+            rec.on_command(
+                true_angle,
+                target_in_true_frame(fx32(target.to_bits()), measured, true_angle),
+            );
         }
         let (cmd, duty) = match out.bridge {
             BridgeDemand::Drive(d) => (BridgeCommand::Drive(d), d),

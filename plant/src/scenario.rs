@@ -25,12 +25,14 @@
 //! bridge was driven after it (must be 0).
 
 use heapless::Deque;
+use model::calibration::pipeline::Pipeline;
 use model::control::{Command, Config};
 use model::servo::{BridgeDemand, Prepared, Servo, ServoError, ServoState, TickOutput};
 use model::supervisor::{Fault, FaultCode, Supervisor, SupervisorConfig};
 use model::{Angle, Design, Length};
 
 use crate::harness::{self, fnv1a64, Metrics, Recorder, Scenario, FNV_OFFSET};
+use crate::overrides::Overrides;
 use crate::sensors::{SensorFault, SensorReadings};
 use crate::sim::{BridgeCommand, Plant};
 
@@ -509,13 +511,23 @@ impl ScenarioRun {
     /// # Errors
     /// The plan's configuration was rejected (a bug in the plan).
     pub fn new(id: ScenarioId) -> Result<ScenarioRun, ServoError> {
+        Self::with_plant(id, &Overrides::NONE)
+    }
+
+    /// Starts scenario `id` on a simulated actuator changed by `plant` (e.g. the link
+    /// powered up elsewhere, `power-up-angle`); the servo is configured as for the nominal
+    /// one and sees the changes only through its sensors.
+    ///
+    /// # Errors
+    /// As [`ScenarioRun::new`].
+    pub fn with_plant(id: ScenarioId, plant: &Overrides) -> Result<ScenarioRun, ServoError> {
         let plan = Plan::of(id);
         let design = Design::paper();
         let mut worlds: [Option<SegmentWorld>; 5] = Default::default();
         let mut prepared: [Option<Prepared>; 5] = Default::default();
         for ((seg, world), prep) in plan.segments.iter().zip(&mut worlds).zip(&mut prepared) {
             if let Some(seg) = seg {
-                *world = Some(Self::segment_world(&plan, &design, seg)?);
+                *world = Some(Self::segment_world(&plan, &design, seg, plant)?);
                 *prep = Some(Prepared::new(
                     &design,
                     &plan.config(seg),
@@ -582,9 +594,11 @@ impl ScenarioRun {
         plan: &Plan,
         design: &Design,
         seg: &Segment,
+        overrides: &Overrides,
     ) -> Result<SegmentWorld, ServoError> {
         let cfg = plan.config(seg);
         let sc = Scenario {
+            plant: *overrides,
             load_nm: seg.load_nm,
             settle_ticks: seg.hold_ticks,
             run_ticks: seg.run_ticks,
@@ -821,9 +835,14 @@ impl ScenarioRun {
         };
         if self.seg_tick == seg.hold_ticks {
             if let Some(rec) = self.recorder.as_mut() {
+                let true_angle = self.plant.state().link_angle_rad;
                 rec.on_command(
-                    self.plant.state().link_angle_rad,
-                    fx32(servo.controller().trajectory().target().to_bits()),
+                    true_angle,
+                    harness::target_in_true_frame(
+                        fx32(servo.controller().trajectory().target().to_bits()),
+                        fx32(out.control.link_angle.to_bits()),
+                        true_angle,
+                    ),
                 );
             }
         }
@@ -878,10 +897,25 @@ impl ScenarioRun {
 /// The plan's configuration was rejected.
 pub fn run_on_host<F: FnMut(&ScenarioEvent)>(
     id: ScenarioId,
+    on_event: F,
+) -> Result<Summary, ServoError> {
+    run_on_host_with_plant(id, &Overrides::NONE, on_event)
+}
+
+/// [`run_on_host`] on a simulated actuator changed by `plant` ([`ScenarioRun::with_plant`]):
+/// the same run as an emulated board given the same overrides. The raw readings go
+/// through the sensor-correction layer ([`Pipeline`], nominal correction) as on the boards.
+///
+/// # Errors
+/// The plan's configuration was rejected.
+pub fn run_on_host_with_plant<F: FnMut(&ScenarioEvent)>(
+    id: ScenarioId,
+    plant: &Overrides,
     mut on_event: F,
 ) -> Result<Summary, ServoError> {
-    let mut run = ScenarioRun::new(id)?;
+    let mut run = ScenarioRun::with_plant(id, plant)?;
     let mut servo = run.servo()?;
+    let mut pipeline = Pipeline::nominal();
     let mut lines = BridgeLines::default();
     let mut actions = heapless::Vec::new();
     while !run.is_done() {
@@ -892,12 +926,15 @@ pub fn run_on_host<F: FnMut(&ScenarioEvent)>(
             let _ = run.apply(&mut servo, a);
         }
         let r = run.readings();
-        let out = servo.tick(&model::servo::TickInput {
-            link_encoder: r.link_encoder,
-            gear_pot: Some(r.gear_pot),
-            current_adc: r.current_adc,
-            read_error: None,
-        });
+        let out = pipeline.tick(
+            &mut servo,
+            &model::servo::TickInput {
+                link_encoder: r.link_encoder,
+                gear_pot: Some(r.gear_pot),
+                current_adc: r.current_adc,
+                read_error: None,
+            },
+        );
         let late = if overrun {
             servo.deadline_missed(0)
         } else {

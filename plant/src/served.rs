@@ -13,6 +13,7 @@ use model::control::{Command, Config, ControlError, Schedule};
 use model::Design;
 
 use crate::harness::{self, Scenario};
+use crate::overrides::Overrides;
 use crate::scenario::BridgeLines;
 use crate::sensors::SensorReadings;
 use crate::sim::Plant;
@@ -35,9 +36,24 @@ impl ServedActuator {
     /// # Errors
     /// `config` was rejected.
     pub fn new(design: Design, config: &Config, load_nm: f32) -> Result<Self, ControlError> {
+        Self::with_plant(design, config, load_nm, &Overrides::NONE)
+    }
+
+    /// [`ServedActuator::new`] on an actuator changed by `plant` (e.g. `power-up-angle`:
+    /// the link at rest elsewhere, the incremental encoder reading zero there).
+    ///
+    /// # Errors
+    /// `config` was rejected.
+    pub fn with_plant(
+        design: Design,
+        config: &Config,
+        load_nm: f32,
+        plant: &Overrides,
+    ) -> Result<Self, ControlError> {
         let sc = Scenario {
             design,
             load_nm: 0.0,
+            plant: *plant,
             ..Scenario::new(*config, Command::Hold)
         };
         let plant = harness::plant_for(&sc)?;

@@ -1,23 +1,24 @@
 //! The calibration sequence on the device (docs/calibration.md): started and stopped by
 //! [`protocol::Request::Calibrate`], one step per control tick from the disabled state
 //! ([`Actuator::control`]), its result applied and stored by the command task
-//! ([`Service::finish_calibration`]) and the stored one applied at boot.
+//! ([`Service::finish_calibration`]) and the stored one applied at boot (the controller's
+//! motor model and link inertia, and the sensor correction installed in the actuator's
+//! correction layer, `Actuator::pipeline`).
 //!
 //! The supervisor stays armed throughout: the servo ticks as when disabled (its controller
-//! tracks the sensors, its bridge demand off) and every check runs on the tick's readings,
-//! with two changes the run needs. The current is read from the offset the rest phase
-//! found (an uncorrected offset of up to 10 % of the range would eat the over-current and
-//! torque margins), and the pot is hidden from it: its direction and gain are what the run
-//! measures, and a pot read the wrong way or 10 % off would show the ±0.6 rad moves as a
-//! deflection far beyond the beams'. The beams are protected instead by the run's current
-//! bound (half their capacity at the longest clutch length, checked every tick by the
-//! sequence) and the supervisor's current-based torque check against the capacity.
+//! tracks the sensors, its bridge demand off) behind the sensor-correction layer in force
+//! (`model::calibration::pipeline`: the current about the offset measured at boot), and
+//! every check runs on the tick's readings but the pot's: its direction and gain are what
+//! the run measures, and a pot read the wrong way or 10 % off would show the ±0.6 rad moves
+//! as a deflection far beyond the beams'. The beams are protected instead by the run's
+//! current bound (half their capacity at the longest clutch length, checked every tick by
+//! the sequence) and the supervisor's current-based torque check against the capacity.
 
 use model::calibration::correction::{SensorCorrection, Sign, POT_CENTER};
 use model::calibration::sequence::{
     Calibration as Sequence, CalibrationConfig, CalibrationResult, Failure, Progress,
 };
-use model::sensors::{ADC_COUNTS, ADC_MID, ENCODER_COUNTS};
+use model::sensors::{ADC_MID, ENCODER_COUNTS};
 use model::servo::{BridgeDemand, ServoState, TickInput, TickOutput};
 use model::Inertia;
 use protocol::{Calibration, CalibrationProgress, CalibrationReport, ErrorCode};
@@ -36,8 +37,6 @@ pub struct Calibrator {
     /// A finished run's result the command task has not applied yet.
     pending: Option<CalibrationResult>,
     progress: CalibrationProgress,
-    /// The sensor correction in force (nominal until calibrated).
-    correction: Option<SensorCorrection>,
 }
 
 impl Calibrator {
@@ -51,12 +50,6 @@ impl Calibrator {
     #[must_use]
     pub const fn running(&self) -> bool {
         matches!(self.progress, CalibrationProgress::Running { .. })
-    }
-
-    /// The sensor correction in force, if a calibration gave one.
-    #[must_use]
-    pub const fn correction(&self) -> Option<&SensorCorrection> {
-        self.correction.as_ref()
     }
 
     /// Stops a run (the next tick turns the motor off).
@@ -100,38 +93,26 @@ impl Calibrator {
         }
         duty.map_or(BridgeDemand::Off, BridgeDemand::Drive)
     }
-
-    /// The readings the supervisor checks during a run (module docs): the pot hidden, the
-    /// current about the offset found at rest.
-    fn supervised(&self, raw: &TickInput) -> TickInput {
-        // Before the rest phase has found the offset: the raw reading.
-        let offset = self
-            .run
-            .as_ref()
-            .and_then(Sequence::current_offset_q16)
-            .map_or(i32::from(ADC_MID), |q16| (q16 + (1 << 15)) >> 16);
-        let adc = i32::from(raw.current_adc) - offset + i32::from(ADC_MID);
-        TickInput {
-            gear_pot: None,
-            current_adc: adc.clamp(0, i32::from(ADC_COUNTS) - 1) as u16,
-            ..*raw
-        }
-    }
 }
 
 impl Actuator {
-    /// One control tick of the servo on `input` and the bridge demand: the servo's own, a
-    /// nudge's, or the calibration run's (module docs). Records the raw readings.
-    pub fn control(&mut self, input: &TickInput) -> (TickOutput, BridgeDemand) {
+    /// One control tick on this tick's raw readings `raw` ([`Actuator::tick`]: the
+    /// correction layer and the servo) and the bridge demand: the servo's own, a nudge's,
+    /// or the calibration run's (module docs). Records the raw readings.
+    pub fn control(&mut self, raw: &TickInput) -> (TickOutput, BridgeDemand) {
         if !self.calibration.running() {
-            let out = self.servo.tick(input);
-            let demand = self.open_loop.demand(input, &out);
+            let out = self.tick(raw);
+            let demand = self.open_loop.demand(raw, &out);
             return (out, demand);
         }
-        let out = self.servo.tick(&self.calibration.supervised(input));
+        // The supervisor's view: the pot hidden (module docs).
+        let out = self.tick(&TickInput {
+            gear_pot: None,
+            ..*raw
+        });
         // The raw readings for `vsa sensors` (no nudge runs: the start refused it).
-        let _ = self.open_loop.demand(input, &out);
-        let demand = self.calibration.step(input, &out);
+        let _ = self.open_loop.demand(raw, &out);
+        let demand = self.calibration.step(raw, &out);
         self.open_loop.note_duty(match demand {
             BridgeDemand::Drive(d) => d,
             BridgeDemand::Off => 0,
@@ -232,7 +213,11 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         )
         .map_err(|_| ErrorCode::OutOfRange)?;
         self.actuator.lock(|a| {
-            if a.servo.state() != ServoState::Disabled || a.open_loop.running() {
+            // Not during the correction layer's boot window (motor off, no checks).
+            if a.servo.state() != ServoState::Disabled
+                || a.open_loop.running()
+                || !a.pipeline.aligned()
+            {
                 return Err(ErrorCode::NotAllowed);
             }
             if a.calibration.running() {
@@ -270,11 +255,15 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
             fixed::types::I32F32::from_bits(crate::micro_to_q32(cal.back_emf_uv_s_per_rad.into()));
         config.link_inertia =
             Inertia::from_int(i32::try_from(cal.link_inertia_kg_mm2).unwrap_or(i32::MAX));
-        self.reconfigure(config, self.service.supervision)?;
         let correction = correction.unwrap_or_else(|| self::correction(cal));
+        // Checked before anything changes; installing it starts the layer's boot window
+        // (the encoder aligned to the pot again in the new frame, motor off).
+        model::calibration::correction::Corrector::new(&correction)
+            .map_err(|_| ErrorCode::OutOfRange)?;
+        self.reconfigure(config, self.service.supervision)?;
         self.actuator
-            .lock(|a| a.calibration.correction = Some(correction));
-        Ok(())
+            .lock(|a| a.pipeline.install(&correction))
+            .map_err(|_| ErrorCode::OutOfRange)
     }
 
     /// At boot and on `load`: the stored calibration in force, if any (one the controller

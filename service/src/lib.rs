@@ -23,6 +23,7 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+use model::calibration::pipeline::Pipeline;
 use model::control::{ClutchSetting, Command, Config, PidGains};
 use model::sensors::POT_COUNT_Q32;
 use model::servo::{BridgeDemand, Prepared, Servo, ServoError, ServoState, TickInput, TickOutput};
@@ -227,6 +228,8 @@ impl TelemetryGate {
 pub struct Actuator {
     /// The servo (controller + supervisor + enable state).
     pub servo: Servo,
+    /// The sensor-correction layer in front of it (raw readings in, the bridge's duty out).
+    pub pipeline: Pipeline,
     /// Telemetry pacing and drop count.
     pub telemetry: TelemetryGate,
     /// The bring-up mode: the open-loop nudge and the last raw readings.
@@ -248,6 +251,7 @@ impl Actuator {
     pub fn new(servo: Servo) -> Self {
         Self {
             servo,
+            pipeline: Pipeline::nominal(),
             telemetry: TelemetryGate::default(),
             open_loop: sensors::OpenLoop::default(),
             calibration: calibrate::Calibrator::default(),
@@ -258,7 +262,25 @@ impl Actuator {
         }
     }
 
-    /// After [`Servo::tick`]: keeps the live limits for the status and returns the
+    /// [`Actuator::new`] with the encoder taken as absolute (raw zero at link angle 0) and
+    /// no boot window ([`Pipeline::assume_aligned`]): a board whose link encoder is
+    /// absolute, or a test that starts from a board already booted at rest.
+    #[must_use]
+    pub fn aligned(servo: Servo) -> Self {
+        let mut a = Self::new(servo);
+        a.pipeline.assume_aligned();
+        a
+    }
+
+    /// One control tick on this tick's raw readings: the correction layer, then the servo
+    /// ([`Pipeline::tick`]; the bridge stays off during its boot window). The readings the
+    /// servo saw: `self.pipeline.input()`.
+    #[inline]
+    pub fn tick(&mut self, raw: &TickInput) -> TickOutput {
+        self.pipeline.tick(&mut self.servo, raw)
+    }
+
+    /// After [`Actuator::tick`]: keeps the live limits for the status and returns the
     /// telemetry sample (with its sequence number) if one is due in this tick.
     /// Cheap: integer scalings only, and only at the telemetry rate.
     pub fn after_tick(
@@ -428,9 +450,10 @@ fn limits_of(config: &Config, supervision: &SupervisorConfig) -> Limits {
 fn refused(e: ServoError) -> ErrorCode {
     match e {
         ServoError::Faulted => ErrorCode::NotAllowed,
-        ServoError::Control(_) | ServoError::Supervisor(_) | ServoError::Impedance(_) => {
-            ErrorCode::OutOfRange
-        }
+        ServoError::Control(_)
+        | ServoError::Supervisor(_)
+        | ServoError::Impedance(_)
+        | ServoError::Correction(_) => ErrorCode::OutOfRange,
     }
 }
 
@@ -541,6 +564,10 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
         self.actuator.lock(|a| {
             if a.calibration.running() {
                 return Err(ErrorCode::Busy);
+            }
+            // Not before the encoder is aligned to the pot: a command would start from 0.
+            if !a.pipeline.aligned() {
+                return Err(ErrorCode::NotAllowed);
             }
             a.servo.enable().map_err(refused)
         })

@@ -84,7 +84,12 @@ fn a_calibration_runs_from_disabled_and_its_result_drives_the_controller() {
     );
     // Without a store the calibration is in force until the next boot.
     assert_eq!(b.service.calibration(), Some(c));
-    // The loop closes on it: a move with no fault.
+    // The new correction is installed: the correction layer aligns the encoder to the pot
+    // again first (motor off), then the loop closes on it: a move with no fault.
+    assert_eq!(b.ask(Request::Enable), Reply::Error(ErrorCode::NotAllowed));
+    for _ in 0..model::calibration::correction::BOOT_TICKS {
+        b.step();
+    }
     assert_eq!(b.ask(Request::Enable), Reply::Ok);
     let mv = Request::Move {
         target_urad: 300_000,

@@ -29,7 +29,7 @@ impl Board {
         let sup = SupervisorConfig::DEFAULT;
         let servo = Servo::new(&design, &config, &sup).unwrap();
         Board {
-            actuator: Cell(Actuator::new(servo)),
+            actuator: Cell(Actuator::aligned(servo)),
             service: Service::new(design, config, sup),
             handler: Handler::new(),
             seq: 0,

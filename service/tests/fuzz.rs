@@ -148,7 +148,7 @@ proptest! {
         let config = Config::paper(Length::from_int(clutch_mm));
         let sup = SupervisorConfig::DEFAULT;
         let servo = Servo::new(&design, &config, &sup).unwrap();
-        let mut actuator = Cell(Actuator::new(servo));
+        let mut actuator = Cell(Actuator::aligned(servo));
         let mut service = Service::new(design, config, sup);
         let mut handler = Handler::new();
         let input = TickInput { link_encoder: 0, gear_pot: Some(512), current_adc: 2048, read_error: None };

@@ -27,7 +27,9 @@ fn refusals_and_acceptance() {
     // L = 5 mm: k = 57.34 N·m/rad.
     let config = Config::paper(Length::from_int(5));
     let sup = SupervisorConfig::DEFAULT;
-    let mut actuator = Cell(Actuator::new(Servo::new(&design, &config, &sup).unwrap()));
+    let mut actuator = Cell(Actuator::aligned(
+        Servo::new(&design, &config, &sup).unwrap(),
+    ));
     let mut service = Service::new(design, config, sup);
     let mut handler = Handler::new();
     let mut ask = |actuator: &mut Cell, req: Request| {

@@ -51,7 +51,7 @@ fn parts() -> (Cell, Service) {
     let sup = SupervisorConfig::DEFAULT;
     let servo = Servo::new(&design, &config, &sup).unwrap();
     (
-        Cell(Actuator::new(servo)),
+        Cell(Actuator::aligned(servo)),
         Service::new(design, config, sup),
     )
 }

@@ -67,7 +67,7 @@ impl Board {
         let config = Config::paper(Length::from_int(3));
         let sup = SupervisorConfig::DEFAULT;
         let servo = Servo::new(&design, &config, &sup).unwrap();
-        let mut actuator = Cell(Actuator::new(servo));
+        let mut actuator = Cell(Actuator::aligned(servo));
         let mut service = Service::new(design, config, sup);
         let (store, _) = Store::open(flash.clone(), &RangeChecks).unwrap();
         let (report, _) = service.attach_store(Box::leak(Box::new(store)), &mut actuator, true);
@@ -268,7 +268,9 @@ fn without_a_store_the_requests_say_so() {
     let design = Design::paper();
     let config = Config::paper(Length::from_int(3));
     let sup = SupervisorConfig::DEFAULT;
-    let mut actuator = Cell(Actuator::new(Servo::new(&design, &config, &sup).unwrap()));
+    let mut actuator = Cell(Actuator::aligned(
+        Servo::new(&design, &config, &sup).unwrap(),
+    ));
     let mut service = Service::new(design, config, sup);
     let mut handler = Handler::new();
     for req in [

@@ -107,6 +107,16 @@ pub struct ConnectArgs {
         help_heading = "Board connection"
     )]
     pub qemu_flash: Option<PathBuf>,
+    /// Makes the emulated board's simulated actuator off-nominal, e.g.
+    /// power-up-angle=0.8rad (repeatable; the names of `vsa simulate --plant`)
+    #[arg(
+        long,
+        global = true,
+        value_name = "NAME=VALUE",
+        allow_hyphen_values = true,
+        help_heading = "Board connection"
+    )]
+    pub qemu_plant: Vec<String>,
     /// Reply timeout, e.g. 2s [default: 1s]
     #[arg(
         long,
@@ -130,6 +140,7 @@ impl ConnectArgs {
             (self.qemu_log.is_some(), "--qemu-log"),
             (self.qemu_load.is_some(), "--qemu-load"),
             (self.qemu_flash.is_some(), "--qemu-flash"),
+            (!self.qemu_plant.is_empty(), "--qemu-plant"),
             (self.timeout.is_some(), "--timeout"),
         ]
         .into_iter()
@@ -170,6 +181,7 @@ impl ConnectArgs {
                 (self.qemu_log.is_some(), "--qemu-log"),
                 (self.qemu_load.is_some(), "--qemu-load"),
                 (self.qemu_flash.is_some(), "--qemu-flash"),
+                (!self.qemu_plant.is_empty(), "--qemu-plant"),
             ] {
                 if given {
                     return Err(CliError::usage(name, "only applies to --qemu"));
@@ -215,12 +227,18 @@ impl ConnectArgs {
             }
             None => None,
         };
+        for o in &self.qemu_plant {
+            // The one parser of the overrides; the firmware parses the same text again.
+            plant::overrides::Override::parse(o)
+                .map_err(|e| CliError::usage("--qemu-plant", format!("`{o}`: {e}")))?;
+        }
         Ok(QemuTarget {
             board,
             elf: self.elf.clone(),
             log: self.qemu_log.clone(),
             load_mnm,
             flash,
+            plant: self.qemu_plant.clone(),
         })
     }
 
@@ -243,6 +261,8 @@ pub struct QemuTarget {
     load_mnm: i32,
     /// `--flash` of the served firmware.
     flash: Option<String>,
+    /// `--plant NAME=VALUE` of the served firmware, checked.
+    plant: Vec<String>,
 }
 
 impl QemuTarget {
@@ -294,6 +314,9 @@ impl QemuTarget {
         };
         if let Some(f) = &self.flash {
             firmware_args.extend(["--flash".to_owned(), f.clone()]);
+        }
+        for o in &self.plant {
+            firmware_args.extend(["--plant".to_owned(), o.clone()]);
         }
         QemuBoard::start(self.board, &elf, &firmware_args, sink)
             .map(|(board, client)| (adopt(board), client))

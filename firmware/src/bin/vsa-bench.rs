@@ -23,8 +23,9 @@
 //! closed loop (a second plant), so each controller sees the sensors its own outputs
 //! produce. Each tick times:
 //!
-//! * `control_step`: sensors read through the driver traits → `Servo::tick` (controller +
-//!   supervisor) → H-bridge driver (`drivers::tick_io`, as the firmware's tick); the plant
+//! * `control_step`: sensors read through the driver traits → the sensor-correction layer
+//!   and `Servo::tick` (controller + supervisor; `model::calibration::pipeline`) → H-bridge
+//!   driver (`drivers::tick_io`, as the firmware's tick); the plant
 //!   excluded. `control_step_f32`: the same with the f32 port (`bench::float::FloatServo`).
 //! * `controller`, `controller_f32`: `Controller::step` alone (a copy of the servo's
 //!   controller fed the same measurements), and its f32 port.
@@ -136,6 +137,7 @@ mod suite {
         FloatSchedule, FloatServo,
     };
     use firmware::board::{at_rest, SimulatedIo, POT_AT_REST};
+    use model::calibration::pipeline::Pipeline;
     use model::control::{Command, Config, Measurements};
     use model::sensors::POT_COUNT_Q32;
     use model::servo::Servo;
@@ -203,6 +205,10 @@ mod suite {
                 continue;
             };
             let (mut io, mut fio): (SimulatedIo, SimulatedIo) = (at_rest(), at_rest());
+            // The sensor-correction layer as on the boards, its boot window over (the plant
+            // starts at rest at 0 rad with the encoder at 0: the identity).
+            let mut pipeline = Pipeline::nominal();
+            pipeline.assume_aligned();
             let _ = servo.enable();
             let _ = fservo.enable();
             let mut ctl = servo.controller().clone();
@@ -231,9 +237,9 @@ mod suite {
 
                 // The same step for the two servos (fixed point, then the f32 port): two
                 // closures on purpose, each timed on its own concrete types.
-                let (out, c) = time((&mut io, &mut servo), |(io, servo)| {
-                    let input = io.read_inputs();
-                    let out = servo.tick(&input);
+                let (out, c) = time((&mut io, &mut servo, &mut pipeline), |(io, servo, p)| {
+                    let raw = io.read_inputs();
+                    let out = p.tick(servo, &raw);
                     io.drive(out.bridge);
                     out
                 });

@@ -147,8 +147,9 @@ mod app {
         let telemetry_tx = cx.local.telemetry_tx;
         io.present(reading(0), reading(1), reading(2));
         let (fault, sampled) = cx.shared.actuator.lock(|a| {
-            let input = io.read_inputs();
-            let out = a.servo.tick(&input);
+            let raw = io.read_inputs();
+            let out = a.tick(&raw);
+            let input = *a.pipeline.input();
             io.drive(out.bridge);
             let mut fault = out.new_fault;
             if SCB::is_pendst_pending() {

@@ -89,9 +89,9 @@ impl Board for Qemu {
     fn init(device: pac::Peripherals, run: &RunConfig) -> Parts<Self> {
         let prescaler = (QEMU_TIMER_INPUT_HZ / 1_000_000 - 1) as u16;
         let (hooks, servo, service) = if run.serve {
-            Simulation::serve(run.serve_load_mnm)
+            Simulation::serve(run.serve_load_mnm, &run.plant)
         } else {
-            Simulation::new(run.scenario)
+            Simulation::new(run.scenario, &run.plant)
         };
         let (serial_rx, serial_tx) = Serial::start(device.USART2, USART_BRR);
         Parts {

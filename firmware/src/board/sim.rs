@@ -15,6 +15,7 @@ use model::sensors::{ADC_COUNTS, ADC_MID, ENCODER_COUNTS, POT_COUNTS};
 use model::servo::{Servo, TickOutput};
 use model::supervisor::{Fault, SupervisorConfig};
 use model::{Design, Length};
+use plant::overrides::Overrides;
 use plant::scenario::{Action, BridgeLines, ScenarioEvent, ScenarioId, ScenarioRun};
 use plant::served::ServedActuator;
 use service::Service;
@@ -105,9 +106,10 @@ enum SimulationKind {
 }
 
 impl Simulation {
-    /// Starts scenario `id`; also returns the servo configured for it and its service.
-    pub fn new(id: ScenarioId) -> (Simulation, Servo, Service) {
-        let run = match ScenarioRun::new(id) {
+    /// Starts scenario `id` on the simulated actuator changed by `plant`; also returns the
+    /// servo configured for it and its service.
+    pub fn new(id: ScenarioId, plant: &Overrides) -> (Simulation, Servo, Service) {
+        let run = match ScenarioRun::with_plant(id, plant) {
             Ok(r) => r,
             Err(e) => defmt::panic!("scenario {=str} rejected: {}", id.name(), e),
         };
@@ -130,8 +132,8 @@ impl Simulation {
 
     /// The simulation of a board serving the host protocol: the paper design at
     /// [`SERVED_CLUTCH_MM`], `load_mnm` mN·m hung on the link once the motor drives
-    /// (see `plant::served`), the servo disabled.
-    pub fn serve(load_mnm: i32) -> (Simulation, Servo, Service) {
+    /// (see `plant::served`), the actuator changed by `plant`, the servo disabled.
+    pub fn serve(load_mnm: i32, plant: &Overrides) -> (Simulation, Servo, Service) {
         let design = Design::paper();
         let config = Config::paper(Length::from_int(SERVED_CLUTCH_MM));
         let supervision = SupervisorConfig::DEFAULT;
@@ -139,7 +141,8 @@ impl Simulation {
             Ok(s) => s,
             Err(e) => defmt::panic!("served servo rejected: {}", e),
         };
-        let plant = match ServedActuator::new(design, &config, load_mnm as f32 / 1000.0) {
+        let load_nm = load_mnm as f32 / 1000.0;
+        let plant = match ServedActuator::with_plant(design, &config, load_nm, plant) {
             Ok(p) => p,
             Err(e) => defmt::panic!("served plant rejected: {}", e),
         };

@@ -141,24 +141,33 @@ impl core::fmt::Display for CorrectionError {
 impl core::error::Error for CorrectionError {}
 
 /// The correction, derived for the per-tick path, and the encoder's unwrapping state.
+/// Every per-tick quantity is an `i32` (a 32×32→64 multiply and a shift per sensor).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Corrector {
     cal: SensorCorrection,
-    /// Canonical encoder counts per raw count, signed, Q16.
-    enc_scale_q16: i64,
-    /// Canonical pot counts per raw count, signed (direction / gain), Q16.
-    pot_scale_q16: i64,
-    /// Canonical ADC counts per raw count, signed (polarity / gain), Q16.
-    cur_scale_q16: i64,
-    /// Raw encoder reading of the last tick.
-    enc_prev: Option<u16>,
+    /// Raw encoder counts per turn and half of it.
+    cpt: i32,
+    half: i32,
+    /// Canonical encoder counts per raw count, signed, Q16 (|·| ≤ 256·2¹⁶).
+    enc_scale_q16: i32,
+    /// Canonical pot counts per raw count, signed (direction / gain), Q16 (|·| ≤ 2¹⁷).
+    pot_scale_q16: i32,
+    /// Canonical ADC counts per raw count, signed (polarity / gain), Q16 (|·| ≤ 2¹⁷).
+    cur_scale_q16: i32,
+    /// Raw current ADC reading at 0 A in use, counts, Q16: measured at boot with the
+    /// bridge off, else the configured one.
+    cur_offset_q16: i32,
+    /// Raw encoder reading of the last tick (reduced to the turn), `-1` before the first.
+    enc_prev: i32,
     /// Raw encoder counts turned since construction, unwrapped.
     enc_turned: i32,
     /// Canonical counts added to the scaled encoder (set by the boot alignment).
     enc_offset: i32,
-    /// Boot alignment: ticks left and the sum of the canonical pot (Q16).
+    /// Boot alignment: ticks left, the sum of the canonical pot (Q16) and of the raw
+    /// current ADC (counts).
     boot_left: u16,
     boot_sum_q16: i64,
+    boot_adc_sum: u32,
 }
 
 /// Signed change of an encoder reading from `prev` to `now` at `per_turn` (≥ 1) counts
@@ -177,6 +186,20 @@ pub fn wrapped_delta(now: u16, prev: u16, per_turn: u16) -> i32 {
 /// `num/den` in Q16, rounded to nearest (configuration time only). `den` > 0.
 fn ratio_q16(num: i64, den: i64) -> i64 {
     (num * Q16 + den / 2).div_euclid(den)
+}
+
+/// `a·b / 2^shift`, rounded down: one 32×32→64 multiply (no overflow for the per-tick
+/// formats above).
+#[inline(always)]
+fn mul_shr(a: i32, b: i32, shift: u32) -> i64 {
+    (i64::from(a) * i64::from(b)) >> shift
+}
+
+/// `a·b / 2³²` rounded to nearest, for a Q16 value times a Q16 scale (|a| < 2²⁸,
+/// |b| ≤ 2¹⁷: the result fits in i32): the high word of one 32×32→64 multiply.
+#[inline(always)]
+fn round_q32(a: i32, b: i32) -> i32 {
+    ((i64::from(a) * i64::from(b) + (1 << 31)) >> 32) as i32
 }
 
 impl Corrector {
@@ -201,19 +224,31 @@ impl Corrector {
         {
             return Err(CorrectionError::Current);
         }
+        // Each scale is within ±2¹⁷ (gains ≥ 0.5) or ±2²⁴ (≥ 16 counts per turn).
+        let scale = |sign: Sign, q: i64| (i64::from(sign.value()) * q) as i32;
         Ok(Corrector {
             cal: *cal,
-            enc_scale_q16: i64::from(cal.encoder_direction.value())
-                * ratio_q16(i64::from(ENCODER_COUNTS), i64::from(cpt)),
-            pot_scale_q16: i64::from(cal.pot_direction.value())
-                * ratio_q16(Q16, i64::from(cal.pot_gain_q16)),
-            cur_scale_q16: i64::from(cal.motor_polarity.value())
-                * ratio_q16(Q16, i64::from(cal.current_gain_q16)),
-            enc_prev: None,
+            cpt: i32::from(cpt),
+            half: i32::from(cpt / 2),
+            enc_scale_q16: scale(
+                cal.encoder_direction,
+                ratio_q16(i64::from(ENCODER_COUNTS), i64::from(cpt)),
+            ),
+            pot_scale_q16: scale(
+                cal.pot_direction,
+                ratio_q16(Q16, i64::from(cal.pot_gain_q16)),
+            ),
+            cur_scale_q16: scale(
+                cal.motor_polarity,
+                ratio_q16(Q16, i64::from(cal.current_gain_q16)),
+            ),
+            cur_offset_q16: cal.current_offset_q16,
+            enc_prev: -1,
             enc_turned: 0,
             enc_offset: 0,
             boot_left: BOOT_TICKS,
             boot_sum_q16: 0,
+            boot_adc_sum: 0,
         })
     }
 
@@ -229,78 +264,145 @@ impl Corrector {
         self.boot_left == 0
     }
 
+    /// The raw current ADC reading taken as 0 A, counts, Q16: the mean of the boot window
+    /// (bridge off) once aligned, unless that mean was at a rail; the configured one before.
+    #[must_use]
+    pub const fn current_offset_q16(&self) -> i32 {
+        self.cur_offset_q16
+    }
+
     /// Aligns the encoder to the pot again over the next [`BOOT_TICKS`] ticks (motor off):
     /// after a new correction was installed or the link was moved with the power off.
     pub fn realign(&mut self) {
         self.boot_left = BOOT_TICKS;
         self.boot_sum_q16 = 0;
+        self.boot_adc_sum = 0;
+    }
+
+    /// Ends the boot window now without measuring: the encoder's raw zero is taken as
+    /// link angle 0 (an absolute encoder, or a test or benchmark that starts from a board
+    /// already booted at rest) and the configured current offset is kept.
+    pub fn assume_aligned(&mut self) {
+        self.boot_left = 0;
+        self.boot_sum_q16 = 0;
+        self.boot_adc_sum = 0;
+        self.enc_prev = 0;
+        self.enc_turned = 0;
+        self.enc_offset = 0;
+        self.cur_offset_q16 = self.cal.current_offset_q16;
     }
 
     /// Canonical pot reading, counts, Q16 (not rounded), of raw reading `raw`.
     #[must_use]
     pub fn pot_q16(&self, raw: u16) -> i64 {
-        let d = (i64::from(raw) << 16) - i64::from(self.cal.pot_center_q16);
-        (i64::from(POT_CENTER) << 16) + ((d * self.pot_scale_q16) >> 16)
+        // A reading beyond the pot's counts (a driver's bug) counts as its last one.
+        let d = (i32::from(raw.min(POT_COUNTS - 1)) << 16) - self.cal.pot_center_q16;
+        (i64::from(POT_CENTER) << 16) + mul_shr(d, self.pot_scale_q16, 16)
     }
 
     /// Canonical link encoder counts turned since power-up (before the offset).
-    fn encoder_scaled(&self) -> i64 {
-        (i64::from(self.enc_turned) * self.enc_scale_q16) >> 16
+    fn encoder_scaled(&self) -> i32 {
+        // |turned| < 2³¹ raw counts and the scale ≤ 2²⁴: the product fits in i64, the
+        // result in i32 for any physically possible travel.
+        mul_shr(self.enc_turned, self.enc_scale_q16, 16) as i32
     }
 
     /// The canonical readings of this tick's raw ones, `None` during the boot alignment
     /// (keep the bridge off and do not run the servo).
     pub fn input(&mut self, raw: &TickInput) -> Option<TickInput> {
-        // Encoder: unwrap at the raw counts per turn.
-        let cpt = self.cal.encoder_counts_per_turn;
-        if let Some(prev) = self.enc_prev {
-            let d = wrapped_delta(raw.link_encoder, prev, cpt);
-            self.enc_turned = self.enc_turned.saturating_add(d);
-        }
-        self.enc_prev = Some(raw.link_encoder % cpt);
-        let pot_q16 = raw.gear_pot.map(|p| self.pot_q16(p));
-        if self.boot_left > 0 {
-            self.boot_left -= 1;
-            self.boot_sum_q16 = self.boot_sum_q16.saturating_add(pot_q16.unwrap_or(0));
-            if self.boot_left == 0 {
-                self.align(raw.gear_pot.is_some());
-            }
-            return None;
-        }
-        let enc = (self.encoder_scaled() + i64::from(self.enc_offset))
-            .rem_euclid(i64::from(ENCODER_COUNTS)) as u16;
-        let pot = pot_q16.map(|q| ((q + Q16 / 2) >> 16).clamp(0, i64::from(POT_COUNTS) - 1) as u16);
-        let current_adc = if raw.current_adc < self.cal.adc_min {
-            0
-        } else if raw.current_adc > self.cal.adc_max {
-            ADC_COUNTS - 1
-        } else {
-            let d = (i64::from(raw.current_adc) << 16) - i64::from(self.cal.current_offset_q16);
-            let c = i64::from(ADC_MID) + ((d * self.cur_scale_q16 + (1 << 31)) >> 32);
-            // A valid raw reading stays off the rails (the supervisor's rails mean a
-            // saturated or open sense, which the raw test above already decided).
-            c.clamp(i64::from(self.cal.adc_min), i64::from(self.cal.adc_max)) as u16
-        };
-        Some(TickInput {
-            link_encoder: enc,
-            gear_pot: pot,
-            current_adc,
-            read_error: raw.read_error,
-        })
+        let mut c = TickInput::default();
+        self.correct(raw, &mut c).then_some(c)
     }
 
-    /// Sets the encoder's offset from the averaged pot: link angle = gear angle.
-    fn align(&mut self, have_pot: bool) {
-        if !have_pot {
-            // No absolute sensor: the link is where it was at power-up (angle 0).
-            self.enc_offset = -(self.encoder_scaled() as i32);
-            return;
+    /// [`Corrector::input`] into `out` (the per-tick form: no copy of the readings);
+    /// `false` during the boot alignment (`out` untouched).
+    #[inline(always)]
+    pub fn correct(&mut self, raw: &TickInput, out: &mut TickInput) -> bool {
+        // Encoder: unwrap at the raw counts per turn (a reading is below it: the timer
+        // counts modulo it; one beyond it is a driver's fault, seen as a jump).
+        let now = i32::from(raw.link_encoder);
+        if self.enc_prev >= 0 {
+            let mut d = now - self.enc_prev;
+            if d >= self.half {
+                d -= self.cpt;
+            } else if d < -self.half {
+                d += self.cpt;
+            }
+            // |turned| < 2³¹: 500 000 turns of a link that moves ±2.5 rad.
+            self.enc_turned = self.enc_turned.wrapping_add(d);
         }
-        let mean_q16 = self.boot_sum_q16 / i64::from(BOOT_TICKS);
-        let from_center = mean_q16 - (i64::from(POT_CENTER) << 16);
-        // Encoder counts at the gear angle; the reading is the centre of its count.
-        let target = ((from_center * ENC_PER_POT_Q16 + (1 << 31)) >> 32) as i32;
-        self.enc_offset = target.saturating_sub(self.encoder_scaled() as i32);
+        self.enc_prev = now;
+        if self.boot_left > 0 {
+            self.boot_step(raw);
+            return false;
+        }
+        let enc = self.encoder_scaled().wrapping_add(self.enc_offset);
+        // The canonical encoder has 4096 counts per turn: the wrap is a mask.
+        out.link_encoder = (enc & (i32::from(ENCODER_COUNTS) - 1)) as u16;
+        out.gear_pot = match raw.gear_pot {
+            Some(p) => {
+                // Q16 × Q16 → Q32: the rounded counts are the high word.
+                let d = (i32::from(p.min(POT_COUNTS - 1)) << 16) - self.cal.pot_center_q16;
+                let c = i32::from(POT_CENTER) + round_q32(d, self.pot_scale_q16);
+                Some(c.clamp(0, i32::from(POT_COUNTS) - 1) as u16)
+            }
+            None => None,
+        };
+        let (lo, hi) = (self.cal.adc_min, self.cal.adc_max);
+        out.current_adc = if raw.current_adc < lo {
+            0
+        } else if raw.current_adc > hi {
+            ADC_COUNTS - 1
+        } else {
+            let d = (i32::from(raw.current_adc) << 16) - self.cur_offset_q16;
+            let c = i32::from(ADC_MID) + round_q32(d, self.cur_scale_q16);
+            // A valid raw reading stays off the rails (the supervisor's rails mean a
+            // saturated or open sense, which the raw test above already decided).
+            c.clamp(i32::from(lo), i32::from(hi)) as u16
+        };
+        out.read_error = raw.read_error;
+        true
+    }
+
+    /// One tick of the boot window (motor off): sums the encoder offset this tick's pot
+    /// gives and the current; at its end the alignment and the current offset.
+    fn boot_step(&mut self, raw: &TickInput) {
+        self.boot_left -= 1;
+        let scaled = i64::from(self.encoder_scaled()) << 16;
+        // The offset that makes the link angle the gear angle from this tick's pot,
+        // canonical encoder counts, Q16: averaged per tick, so that a link that moves
+        // during the window (falling under a load with the motor off) is aligned as well.
+        let offset_q16 = match raw.gear_pot {
+            Some(p) => {
+                let from_center = self.pot_q16(p) - (i64::from(POT_CENTER) << 16);
+                ((from_center * ENC_PER_POT_Q16) >> 16) - scaled
+            }
+            // No absolute sensor: the link is where it was at power-up (angle 0).
+            None => -scaled,
+        };
+        self.boot_sum_q16 = self.boot_sum_q16.saturating_add(offset_q16);
+        self.boot_adc_sum = self.boot_adc_sum.saturating_add(u32::from(raw.current_adc));
+        if self.boot_left == 0 {
+            // Mean offset, rounded to whole counts; the reading is the centre of its count.
+            let mean_q16 = self.boot_sum_q16 / i64::from(BOOT_TICKS);
+            self.enc_offset = ((mean_q16 + Q16 / 2) >> 16) as i32;
+            // Mean raw current with the bridge off: 0 A, unless it sits at a rail (a dead
+            // or unidirectional sense, which the supervisor then reports).
+            let n = u32::from(BOOT_TICKS);
+            let mean = self.boot_adc_sum / n;
+            let rails = u32::from(self.cal.adc_min)..=u32::from(self.cal.adc_max);
+            self.cur_offset_q16 = if rails.contains(&mean) {
+                ((u64::from(self.boot_adc_sum) << 16) / u64::from(n)) as i32
+            } else {
+                self.cal.current_offset_q16
+            };
+        }
+    }
+
+    /// Whether the motor's leads are reversed (the bridge's duty is the servo's negated).
+    #[must_use]
+    pub const fn reversed(&self) -> bool {
+        matches!(self.cal.motor_polarity, Sign::Minus)
     }
 
     /// The bridge duty, ‰, for the servo's `duty`.

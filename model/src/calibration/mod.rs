@@ -3,4 +3,6 @@
 //! sequence that finds what it needs ([`sequence`]).
 
 pub mod correction;
+pub mod pipeline;
+pub mod pot_error;
 pub mod sequence;

@@ -433,16 +433,6 @@ impl Calibration {
         }
     }
 
-    /// The current sense's offset found at rest, Q16 ADC counts; `None` before the rest
-    /// phase has ended.
-    #[must_use]
-    pub fn current_offset_q16(&self) -> Option<i32> {
-        match self.phase {
-            Phase::Rest { .. } => None,
-            _ => i32::try_from(self.offset_q16).ok(),
-        }
-    }
-
     fn fail(&mut self, f: Failure) -> Option<i16> {
         self.phase = Phase::Finished;
         self.progress = Progress::Failed(f);

@@ -32,7 +32,9 @@ impl Bench {
         let config = Config::paper(Length::from_int(3));
         let sup = SupervisorConfig::DEFAULT;
         Bench {
-            actuator: Cell(Actuator::new(Servo::new(&design, &config, &sup).unwrap())),
+            actuator: Cell(Actuator::aligned(
+                Servo::new(&design, &config, &sup).unwrap(),
+            )),
             service: Service::new(design, config, sup),
             handler: Handler::new(),
             world: ServedActuator::new(design, &config, load_nm).unwrap(),
@@ -62,13 +64,14 @@ impl Bench {
     pub fn tick(&mut self) -> (TickInput, TickOutput) {
         let a = &mut self.actuator.0;
         let r = self.world.tick(self.lines, a.servo.controller().schedule());
-        let input = TickInput {
+        let raw = TickInput {
             link_encoder: r.link_encoder,
             gear_pot: Some(r.gear_pot),
             current_adc: r.current_adc,
             read_error: None,
         };
-        let (out, demand) = a.control(&input);
+        let (out, demand) = a.control(&raw);
+        let input = *a.pipeline.input();
         self.lines = BridgeLines::for_demand(demand);
         // The live values the status and the Dynamixel registers report, as the firmware's
         // tick publishes them.
