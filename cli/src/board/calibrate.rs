@@ -28,6 +28,8 @@ pub struct CalibrateArgs {
 
 /// How often the progress is asked for.
 const POLL: Duration = Duration::from_millis(100);
+/// Longest wait for the board to accept the start (its sensor alignment after boot).
+const READY: Duration = Duration::from_secs(2);
 /// Longest time without progress before giving up (the sequence moves every few seconds).
 const STALL: Duration = Duration::from_secs(30);
 
@@ -107,7 +109,7 @@ pub fn run(s: &mut Session, a: &CalibrateArgs) -> CliResult<()> {
 /// Starts the sequence and follows it to its end with a progress bar (on stderr, hidden
 /// with `--json` or when stderr is not a terminal).
 fn calibrate(s: &mut Session, quiet: bool) -> CliResult<CalibrationReport> {
-    s.client.calibrate(true).map_err(|e| s.fail(&e))?;
+    start(s)?;
     let bar = if quiet {
         ProgressBar::with_draw_target(Some(100), ProgressDrawTarget::hidden())
     } else {
@@ -144,6 +146,32 @@ fn calibrate(s: &mut Session, quiet: bool) -> CliResult<CalibrationReport> {
             )));
         }
         s.client.wait(POLL).map_err(|e| s.fail(&e))?;
+    }
+}
+
+/// Starts the sequence. Right after boot (or a new correction) the board aligns its
+/// sensors for a few ticks first and refuses: asked again for up to [`READY`].
+fn start(s: &mut Session) -> CliResult<()> {
+    let since = Instant::now();
+    loop {
+        match s.client.calibrate(true) {
+            Ok(()) => return Ok(()),
+            Err(client::Error::Refused {
+                code: client::ErrorCode::NotAllowed,
+                ..
+            }) => {
+                let st = s.client.status().map_err(|e| s.fail(&e))?;
+                let idle = st.state == client::State::Disabled && st.faults.is_empty();
+                if !idle || since.elapsed() > READY {
+                    return Err(CliError::runtime(
+                        "the board refused to calibrate: the motor must be disabled with no \
+                         fault latched (`vsa disable`, `vsa clear`)",
+                    ));
+                }
+                s.client.wait(POLL).map_err(|e| s.fail(&e))?;
+            }
+            Err(e) => return Err(s.fail(&e)),
+        }
     }
 }
 
