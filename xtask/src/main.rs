@@ -103,6 +103,13 @@ enum Task {
         #[arg(long, value_enum, default_value = "qemu-m4")]
         board: Board,
     },
+    /// `vsa --qemu calibrate` on seeded off-nominal builds, a power cycle and a broken
+    /// build (`VSA_CALIBRATION_BUILDS=N` calibrates N builds).
+    Calibration {
+        /// Emulated board.
+        #[arg(long, value_enum, default_value = "qemu-m4")]
+        board: Board,
+    },
     /// Instruction counts per call (fixed point vs f32), footprint and stack of each board.
     Bench,
     /// Cargo runner for thumb targets: run an ELF on an emulated board.
@@ -194,6 +201,7 @@ fn dispatch(task: Task) -> Result<ExitCode> {
         Task::Flash => flash::run(),
         Task::E2e { board } => board_check(board, e2e::run),
         Task::Persistence { board } => board_check(board, persistence::run),
+        Task::Calibration { board } => board_check(board, calibrate::check),
         Task::Dynamixel { board } => board_check(board, dynamixel::run),
         Task::DecodeLog { elf, log } => {
             let format = defmt_log::LogFormat::from_elf(&elf)?;
