@@ -25,7 +25,7 @@ mod sealed {
 }
 
 impl Message for Request {
-    const VARIANTS: u32 = 27;
+    const VARIANTS: u32 = 28;
 }
 
 impl Message for Reply {

@@ -179,6 +179,15 @@ pub trait Device {
         Err(ErrorCode::Storage)
     }
 
+    /// [`Request::SetBus`]: change the Dynamixel bus settings.
+    ///
+    /// # Errors
+    /// [`ErrorCode::NotAllowed`] by default: a device without a bus.
+    fn set_bus(&mut self, change: &crate::BusChange) -> Result<(), ErrorCode> {
+        let _ = change;
+        Err(ErrorCode::NotAllowed)
+    }
+
     /// [`Request::Calibrate`]: start (`start`) or stop the calibration sequence.
     ///
     /// # Errors
@@ -439,6 +448,7 @@ impl Handler {
                 damping_unms_per_rad,
                 torque_unm,
             )),
+            Request::SetBus(_) => crate::bus::dispatch(req, dev),
         }
     }
 

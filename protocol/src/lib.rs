@@ -93,6 +93,7 @@
     clippy::panic
 )]
 
+mod bus;
 mod calibration;
 mod frame;
 mod handler;
@@ -100,6 +101,7 @@ mod msg;
 mod replay;
 mod sensors;
 
+pub use bus::BusChange;
 pub use calibration::{Calibration, CalibrationProgress, CalibrationReport};
 pub use frame::{
     decode_payload, encode, encode_raw, encode_telemetry, encode_to_vec, telemetry_frame, Decoder,

@@ -12,6 +12,7 @@ mod bench;
 mod board;
 mod calibrate;
 mod checks;
+mod ci_script;
 mod cmd;
 mod defmt_log;
 mod dynamixel;

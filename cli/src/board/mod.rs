@@ -5,6 +5,7 @@
 //! exits with 2 and sends nothing); a refusal, a timeout or a lost connection exits with 1.
 
 pub mod bus;
+mod bus_settings;
 mod calibrate;
 mod config;
 mod impedance;
@@ -520,6 +521,8 @@ pub enum BoardCommand {
     Config(config::ConfigCommand),
     /// The faults latched now, or with --log the fault log kept in flash
     Faults(config::FaultsArgs),
+    /// The Dynamixel bus settings, e.g. `bus --protocol 1` or `bus --id 4 --baud 57600`
+    Bus(bus_settings::BusArgs),
     /// Calibrate a real build (motor disabled): polarity, sensor directions and offsets,
     /// motor resistance and back-EMF, link inertia; stored on the board (`--show`: print it)
     Calibrate(calibrate::CalibrateArgs),
@@ -610,6 +613,7 @@ enum Action {
     },
     Config(config::ConfigCommand),
     Faults(config::FaultsArgs),
+    Bus(client::protocol::BusChange),
     Calibrate(calibrate::CalibrateArgs),
 }
 
@@ -642,6 +646,7 @@ fn plan(cmd: &BoardCommand) -> CliResult<Action> {
         BoardCommand::Faults(f) => Action::Faults(*f),
         BoardCommand::Calibrate(a) => Action::Calibrate(*a),
         BoardCommand::Impedance(a) => Action::Impedance(impedance::plan(a)?),
+        BoardCommand::Bus(a) => Action::Bus(bus_settings::plan(a)?),
         BoardCommand::Gains(g) => Action::Gains(plan_gains(g)?),
         BoardCommand::Limits(l) => Action::Limits(plan_limits(l)?),
         BoardCommand::Wait { duration } => {
@@ -814,6 +819,7 @@ fn exec(action: &Action, s: &mut Session) -> CliResult<()> {
         Action::Config(cmd) => config::config(c, *cmd),
         Action::Faults(args) => config::faults(c, *args),
         Action::Impedance(p) => return impedance::run(s, p),
+        Action::Bus(c) => return bus_settings::run(s, c),
         Action::Calibrate(a) => return calibrate::run(s, a),
     };
     match r {

@@ -176,6 +176,18 @@ pub fn request() -> impl Strategy<Value = Request> {
                 damping_unms_per_rad: d,
                 torque_unm: t.saturating_mul(64),
             }),
+        (
+            proptest::option::of(0u8..=3),
+            proptest::option::of(prop_oneof![Just(0u8), Just(253), Just(254), any::<u8>()]),
+            proptest::option::of(prop_oneof![Just(0u32), Just(1_000_000), any::<u32>()])
+        )
+            .prop_map(|(protocol_version, id, baud_bps)| Request::SetBus(
+                protocol::BusChange {
+                    protocol_version,
+                    id,
+                    baud_bps
+                }
+            )),
         any::<bool>().prop_map(|start| Request::Calibrate { start }),
         Just(Request::GetCalibration),
     ]
@@ -209,8 +221,9 @@ pub fn request_index(r: &Request) -> u32 {
         Request::FactoryReset => 22,
         Request::FaultsLog { .. } => 23,
         Request::Impedance { .. } => 24,
-        Request::Calibrate { .. } => 25,
-        Request::GetCalibration => 26,
+        Request::SetBus(_) => 25,
+        Request::Calibrate { .. } => 26,
+        Request::GetCalibration => 27,
     }
 }
 
@@ -445,6 +458,7 @@ pub enum Call {
     FactoryReset,
     FaultsLog(u8),
     Impedance(i32, u32, u32, i32),
+    SetBus(protocol::BusChange),
     Calibrate(bool),
     Calibration,
 }
@@ -726,6 +740,10 @@ impl Device for MockDevice {
         Ok((0, None))
     }
 
+    fn set_bus(&mut self, change: &protocol::BusChange) -> Result<(), ErrorCode> {
+        self.calls.push(Call::SetBus(*change));
+        Ok(())
+    }
     fn calibrate(&mut self, start: bool) -> Result<(), ErrorCode> {
         self.calls.push(Call::Calibrate(start));
         Ok(())
@@ -789,6 +807,7 @@ pub fn expected_call(r: &Request) -> Option<Call> {
             damping_unms_per_rad,
             torque_unm,
         ),
+        Request::SetBus(change) => Call::SetBus(change),
         Request::Calibrate { start } => Call::Calibrate(start),
         Request::GetCalibration => Call::Calibration,
     })
