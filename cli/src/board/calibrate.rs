@@ -91,8 +91,8 @@ pub fn run(s: &mut Session, a: &CalibrateArgs) -> CliResult<()> {
     }
     let failure = failure.map(failure_of);
     // The board's word that the sequence's drive has ended: the open-loop duty it
-    // applied in its last tick.
-    let duty = applied_duty(s)?;
+    // applied in its last tick (not asked for with `--show`).
+    let duty = if a.show { None } else { Some(applied_duty(s)?) };
     out(&if a.json {
         json(cal.as_ref(), failure, duty)
     } else {
@@ -204,7 +204,7 @@ fn opt(v: Option<f64>) -> serde_json::Value {
 }
 
 /// The JSON object (one line).
-fn json(cal: Option<&Calibration>, failure: Option<(&str, &str)>, duty: i16) -> String {
+fn json(cal: Option<&Calibration>, failure: Option<(&str, &str)>, duty: Option<i16>) -> String {
     let f = |g: fn(&Calibration) -> f64| opt(cal.map(g));
     let stiffness = cal.and_then(|c| c.stiffness_mnm_per_rad);
     let v = serde_json::json!({
@@ -232,17 +232,16 @@ fn sign_text(v: i8, plus: &str, minus: &str) -> String {
 }
 
 /// The result as aligned `name  value` lines.
-fn text(cal: Option<&Calibration>, failure: Option<(&str, &str)>, duty: i16) -> String {
+fn text(cal: Option<&Calibration>, failure: Option<(&str, &str)>, duty: Option<i16>) -> String {
     let mut s = String::new();
     if let Some((name, message)) = failure {
         let _ = writeln!(s, "calibration failed: {name}\n{message}");
-        if duty == 0 {
-            s.push_str("the motor is off\n");
-        } else {
-            let _ = writeln!(
-                s,
-                "the board still drives the motor at {duty} ‰: disable it"
-            );
+        match duty {
+            Some(0) => s.push_str("the motor is off\n"),
+            Some(d) => {
+                let _ = writeln!(s, "the board still drives the motor at {d} ‰: disable it");
+            }
+            None => {}
         }
         return s;
     }
@@ -333,7 +332,7 @@ mod tests {
 
     #[test]
     fn json_has_every_field_in_si_units() {
-        let v: serde_json::Value = serde_json::from_str(&json(Some(&CAL), None, 0)).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&json(Some(&CAL), None, Some(0))).unwrap();
         assert_eq!(v["status"], "ok");
         assert_eq!(v["motor_polarity"], -1.0);
         assert_eq!(v["current_offset_counts"], -250.0);
@@ -349,13 +348,13 @@ mod tests {
     fn a_failure_is_named_with_its_message() {
         let code = Failure::EncoderDead.code();
         let f = failure_of(code);
-        let v: serde_json::Value = serde_json::from_str(&json(None, Some(f), 0)).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&json(None, Some(f), Some(0))).unwrap();
         assert_eq!(v["status"], "encoder-dead");
         assert!(v["message"].as_str().unwrap().contains("link encoder"));
         assert!(v["resistance_ohm"].is_null());
         assert_eq!(v["motor_duty_permille"], 0);
-        assert!(text(None, Some(f), 0).contains("the motor is off"));
-        assert!(text(None, Some(f), 80).contains("still drives"));
+        assert!(text(None, Some(f), Some(0)).contains("the motor is off"));
+        assert!(text(None, Some(f), Some(80)).contains("still drives"));
         assert_eq!(failure_of(0).0, "unknown");
     }
 }
