@@ -170,7 +170,11 @@ pub fn check(board: Board, elf: &Path) -> Result<String> {
         let b = build(&mut rng);
         let stored = (i == 0).then_some(flash.as_path());
         let (ok, v) = calibrate(&vsa, board, elf, &b.overrides, stored, &[])?;
-        ensure!(ok, "vsa calibrate failed on a healthy build: {v}");
+        ensure!(
+            ok,
+            "vsa calibrate failed on a healthy build: {v} ({:?})",
+            b.overrides
+        );
         worst = worst.max(check_healthy(&b, &v)?);
         if i == 0 {
             // Power cycle: a new board with the same flash file and the same actuator.

@@ -99,9 +99,16 @@ pub fn run(s: &mut Session, a: &CalibrateArgs) -> CliResult<()> {
         text(cal.as_ref(), failure, duty)
     });
     match failure {
-        Some((name, message)) => Err(CliError::runtime(format!(
-            "calibration failed ({name}): {message}"
-        ))),
+        Some((name, message)) => {
+            // The supervisor's fault, named (`fault`).
+            let first = s.client.status().ok().and_then(|st| st.first_fault);
+            let detail = first.map_or_else(String::new, |f| {
+                format!(" (first fault: {})", client::describe_fault(&f))
+            });
+            Err(CliError::runtime(format!(
+                "calibration failed ({name}): {message}{detail}"
+            )))
+        }
         None => Ok(()),
     }
 }
