@@ -343,6 +343,7 @@ impl Device for MockDevice {
             telemetry_dropped: self.telemetry_dropped,
             protocol_errors: 0,
             differs_from_stored: self.running() != self.stored_or_default(),
+            calibration: protocol::CalibrationProgress::Idle,
         }
     }
 

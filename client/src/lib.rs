@@ -31,6 +31,7 @@
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
 
+mod calibration;
 mod client;
 pub mod csv;
 pub mod fake;

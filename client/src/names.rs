@@ -32,6 +32,8 @@ pub const fn request_name(req: &Request) -> &'static str {
         Request::FaultsLog { .. } => "faults-log",
         Request::Impedance { .. } => "impedance",
         Request::SetBus(_) => "bus",
+        Request::Calibrate { .. } => "calibrate",
+        Request::GetCalibration => "get-calibration",
     }
 }
 

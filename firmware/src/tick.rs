@@ -85,8 +85,8 @@ impl ControlLoop {
         let plan = self.hooks.before_step(&mut self.io, &mut actuator.servo);
         let t1 = SYST::get_current();
         let raw = self.io.read_inputs();
-        let out = actuator.tick(&raw);
-        self.io.drive(actuator.open_loop.demand(&raw, &out));
+        let (out, demand) = actuator.control(&raw);
+        self.io.drive(demand);
         let t2 = SYST::get_current();
         let input = *actuator.pipeline.input();
         let sampled = actuator.publish_tick(&input, &out, telemetry);

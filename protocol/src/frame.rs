@@ -25,11 +25,11 @@ mod sealed {
 }
 
 impl Message for Request {
-    const VARIANTS: u32 = 26;
+    const VARIANTS: u32 = 28;
 }
 
 impl Message for Reply {
-    const VARIANTS: u32 = 9;
+    const VARIANTS: u32 = 10;
 }
 
 /// One frame: version, sequence number, body (postcard-encoded in this order).

@@ -187,6 +187,24 @@ pub trait Device {
         let _ = change;
         Err(ErrorCode::NotAllowed)
     }
+
+    /// [`Request::Calibrate`]: start (`start`) or stop the calibration sequence.
+    ///
+    /// # Errors
+    /// [`ErrorCode::NotAllowed`] unless disabled with no fault latched (and by default: a
+    /// device without it).
+    fn calibrate(&mut self, start: bool) -> Result<(), ErrorCode> {
+        let _ = start;
+        Err(ErrorCode::NotAllowed)
+    }
+
+    /// [`Request::GetCalibration`]: the sequence's progress and the calibration in force.
+    ///
+    /// # Errors
+    /// [`ErrorCode::NotAllowed`] by default: a device without it.
+    fn calibration(&mut self) -> Result<crate::CalibrationReport, ErrorCode> {
+        Err(ErrorCode::NotAllowed)
+    }
 }
 
 /// Protocol errors since start, per kind (saturating counters).
@@ -410,6 +428,9 @@ impl Handler {
             }
             Request::GetLimits => Ok(Reply::Limits(dev.limits())),
             Request::GetSensors | Request::Nudge { .. } => crate::sensors::dispatch(req, dev),
+            Request::Calibrate { .. } | Request::GetCalibration => {
+                crate::calibration::dispatch(req, dev)
+            }
             Request::Save => done(dev.save()),
             Request::Load => done(dev.load()),
             Request::FactoryReset => done(dev.factory_reset()),

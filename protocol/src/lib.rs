@@ -94,6 +94,7 @@
 )]
 
 mod bus;
+mod calibration;
 mod frame;
 mod handler;
 mod msg;
@@ -101,6 +102,7 @@ mod replay;
 mod sensors;
 
 pub use bus::BusChange;
+pub use calibration::{Calibration, CalibrationProgress, CalibrationReport};
 pub use frame::{
     decode_payload, encode, encode_raw, encode_telemetry, encode_to_vec, telemetry_frame, Decoder,
     EncodeError, Frame, FrameBuf, FrameError, Message, TelemetryFrameBuf, CRC,
@@ -129,12 +131,12 @@ pub const MAX_HEADER: usize = 1 + 3;
 /// Largest postcard encoding of a [`Request`] body: `SetGains`, tag (1) + 3 × u64 (10).
 pub const MAX_REQUEST_BODY: usize = 1 + 3 * 10;
 
-/// Largest postcard encoding of a [`Reply`] body: `Status`, tag (1) + 47.
+/// Largest postcard encoding of a [`Reply`] body: `Status`, tag (1) + 50.
 ///
 /// state 1, faults 3, first fault 1 + (code 1 + value 5 + tick 5), limits 1, clutch 5,
 /// stiffness 5, tick 5, moving 1, telemetry rate 3, telemetry dropped 5, protocol errors 5,
-/// differs from stored 1.
-pub const MAX_REPLY_BODY: usize = 1 + 47;
+/// differs from stored 1, calibration progress 3 (the calibration report is 1 + 48).
+pub const MAX_REPLY_BODY: usize = 1 + 50;
 
 /// Largest postcard encoding of a telemetry reply body: tag (1) + 35 (see
 /// [`TelemetrySample`]).

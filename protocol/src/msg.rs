@@ -142,6 +142,17 @@ pub enum Request {
     /// on a device without a bus, [`ErrorCode::Storage`] if they could not be stored (in
     /// force until the next boot all the same).
     SetBus(crate::bus::BusChange),
+    /// Start (`start: true`) the calibration sequence of a real build (docs/calibration.md)
+    /// from the disabled state, or stop it (`false`: the motor off). Refused with
+    /// [`ErrorCode::NotAllowed`] unless disabled with no fault latched; progress in
+    /// [`Status::calibration`], the result by [`Request::GetCalibration`]. Reply:
+    /// [`Reply::Ok`].
+    Calibrate {
+        /// Start (`true`) or stop (`false`).
+        start: bool,
+    },
+    /// Reply: [`Reply::Calibration`].
+    GetCalibration,
 }
 
 /// PID gains, each in 10⁻³ of the controller's unit (duty ‰ out, link angle in rad), so
@@ -241,7 +252,9 @@ impl Request {
             | Request::Save
             | Request::Load
             | Request::FactoryReset
-            | Request::FaultsLog { .. } => true,
+            | Request::FaultsLog { .. }
+            | Request::Calibrate { .. }
+            | Request::GetCalibration => true,
             Request::SetClutchLength { length_um } => {
                 (CLUTCH_MIN_UM..=CLUTCH_MAX_UM).contains(&length_um)
             }
@@ -372,6 +385,8 @@ pub enum Reply {
         /// The entry asked for.
         entry: Option<LoggedFault>,
     },
+    /// Reply to [`Request::GetCalibration`].
+    Calibration(crate::CalibrationReport),
 }
 
 /// A latched fault as the settings store's fault log keeps it (it survives resets).
@@ -601,6 +616,8 @@ pub struct Status {
     /// nothing stored, from the defaults): `save` would change what the next boot loads.
     /// `false` on a device without a store.
     pub differs_from_stored: bool,
+    /// Where the calibration sequence is ([`Request::Calibrate`]).
+    pub calibration: crate::CalibrationProgress,
 }
 
 /// One telemetry sample (taken at a control tick).

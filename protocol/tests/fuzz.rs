@@ -89,7 +89,9 @@ fn in_range(r: &Request) -> bool {
         | Request::Save
         | Request::Load
         | Request::FactoryReset
-        | Request::FaultsLog { .. } => true,
+        | Request::FaultsLog { .. }
+        | Request::Calibrate { .. }
+        | Request::GetCalibration => true,
         Request::Nudge {
             duty_permille,
             duration_ms,
@@ -306,6 +308,10 @@ proptest! {
                     prop_assert!(asked, "FaultsLog for {:?}", req);
                     prop_assert_eq!((count, entry), (0, None), "the mock's log is empty");
                 }
+                Reply::Calibration(r) => {
+                    prop_assert_eq!(req, Request::GetCalibration);
+                    prop_assert_eq!(r.calibration, None, "the mock has no calibration");
+                }
             }
         } else {
             prop_assert_eq!(reply.body, Reply::Error(ErrorCode::OutOfRange));
@@ -453,7 +459,7 @@ proptest! {
 #[test]
 fn frames_are_bounded_and_message_counts_match() {
     println!("fuzz cases per property: {}", config(FUZZ_CASES).cases);
-    assert_eq!(Request::VARIANTS, 26);
-    assert_eq!(Reply::VARIANTS, 9);
+    assert_eq!(Request::VARIANTS, 28);
+    assert_eq!(Reply::VARIANTS, 10);
     const { assert!(MAX_FRAME <= 64, "a frame fits a 64-byte DMA/queue slot") };
 }

@@ -6,10 +6,11 @@ mod common;
 use common::*;
 use proptest::prelude::*;
 use protocol::{
-    decode_payload, encode, encode_telemetry, encode_to_vec, telemetry_frame, Decoder, EncodeError,
-    ErrorCode, FaultCode, FaultRecord, FaultSet, Frame, FrameError, Gains, LimitFlags, Limits,
-    LoggedFault, Message, Reply, Request, State, Status, TelemetrySample, CRC, MAX_FRAME,
-    MAX_PAYLOAD, MAX_TELEMETRY_FRAME, VERSION,
+    decode_payload, encode, encode_telemetry, encode_to_vec, telemetry_frame, Calibration,
+    CalibrationProgress, CalibrationReport, Decoder, EncodeError, ErrorCode, FaultCode,
+    FaultRecord, FaultSet, Frame, FrameError, Gains, LimitFlags, Limits, LoggedFault, Message,
+    Reply, Request, State, Status, TelemetrySample, CRC, MAX_FRAME, MAX_PAYLOAD,
+    MAX_TELEMETRY_FRAME, VERSION,
 };
 
 /// Decodes `bytes` byte by byte; panics on any error or a frame before the last byte.
@@ -180,6 +181,8 @@ fn largest_requests() -> Vec<Request> {
             id: Some(u8::MAX),
             baud_bps: Some(u32::MAX),
         }),
+        Request::Calibrate { start: true },
+        Request::GetCalibration,
     ]
 }
 
@@ -218,6 +221,10 @@ fn largest_replies() -> Vec<Reply> {
             telemetry_dropped: u32::MAX,
             protocol_errors: u32::MAX,
             differs_from_stored: true,
+            calibration: CalibrationProgress::Running {
+                phase: u8::MAX,
+                percent: u8::MAX,
+            },
         }),
         Reply::ClutchToSet {
             length_um: u32::MAX,
@@ -254,6 +261,26 @@ fn largest_replies() -> Vec<Reply> {
                 },
             }),
         },
+        Reply::Calibration(CalibrationReport {
+            progress: CalibrationProgress::Running {
+                phase: u8::MAX,
+                percent: u8::MAX,
+            },
+            calibration: Some(Calibration {
+                motor_polarity: i8::MIN,
+                encoder_direction: i8::MIN,
+                pot_direction: i8::MIN,
+                current_offset_counts: i16::MIN,
+                pot_offset_counts: i16::MIN,
+                resistance_mohm: u32::MAX,
+                back_emf_uv_s_per_rad: u32::MAX,
+                gear_friction_unm: u32::MAX,
+                link_inertia_kg_mm2: u32::MAX,
+                stiffness_mnm_per_rad: Some(u32::MAX),
+                clutch_length_um: Some(u32::MAX),
+                stiffness_uncertainty_permille: u16::MAX,
+            }),
+        }),
     ]
 }
 

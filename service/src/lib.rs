@@ -36,6 +36,7 @@ use protocol::{
 use rtic_core::Mutex;
 
 mod bus_settings;
+pub mod calibrate;
 pub mod dynamixel;
 mod impedance;
 pub mod line;
@@ -234,6 +235,8 @@ pub struct Actuator {
     pub telemetry: TelemetryGate,
     /// The bring-up mode: the open-loop nudge and the last raw readings.
     pub open_loop: sensors::OpenLoop,
+    /// The calibration sequence and the sensor correction it gave.
+    pub calibration: calibrate::Calibrator,
     limits: LimitFlags,
     /// Measured link angle at the last tick, I32F32 rad (a sine's centre).
     link_angle: i64,
@@ -252,6 +255,7 @@ impl Actuator {
             pipeline: Pipeline::nominal(),
             telemetry: TelemetryGate::default(),
             open_loop: sensors::OpenLoop::default(),
+            calibration: calibrate::Calibrator::default(),
             limits: LimitFlags::NONE,
             link_angle: 0,
             link_velocity: 0,
@@ -369,6 +373,7 @@ impl Actuator {
             telemetry_dropped: self.telemetry.dropped(),
             protocol_errors: 0,
             differs_from_stored: false,
+            calibration: self.calibration.progress(),
         }
     }
 }
@@ -558,6 +563,9 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
 impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
     fn enable(&mut self) -> Result<(), ErrorCode> {
         self.actuator.lock(|a| {
+            if a.calibration.running() {
+                return Err(ErrorCode::Busy);
+            }
             // Not before the encoder is aligned to the pot: a command would start from 0.
             if !a.pipeline.aligned() {
                 return Err(ErrorCode::NotAllowed);
@@ -569,6 +577,7 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
     fn disable(&mut self) -> Result<(), ErrorCode> {
         self.actuator.lock(|a| {
             a.open_loop.stop();
+            a.calibration.abort();
             a.servo.disable();
         });
         Ok(())
@@ -721,8 +730,19 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
 
     fn nudge(&mut self, duty_permille: i16, duration_ms: u16) -> Result<(), ErrorCode> {
         self.actuator.lock(|a| {
+            if a.calibration.running() {
+                return Err(ErrorCode::Busy);
+            }
             let state = a.servo.state();
             a.open_loop.start(state, duty_permille, duration_ms)
         })
+    }
+
+    fn calibrate(&mut self, start: bool) -> Result<(), ErrorCode> {
+        ServiceDevice::calibrate(self, start)
+    }
+
+    fn calibration(&mut self) -> Result<protocol::CalibrationReport, ErrorCode> {
+        Ok(self.calibration_report())
     }
 }

@@ -188,6 +188,11 @@ impl<'q, W: Write> Link<'q, W> {
     /// the first call after it began (the firmware calls this every control tick).
     pub fn poll(&mut self, actuator: &mut impl Mutex<T = Actuator>) {
         self.service.log_latched_fault(actuator);
+        self.service.finish_calibration(actuator);
+        if let Some(d) = self.dynamixel.as_mut() {
+            d.bus
+                .set_calibration_state(self.service.calibration_register(actuator));
+        }
         loop {
             if let Some(byte) = self.rx.dequeue() {
                 match self.dynamixel.as_mut() {

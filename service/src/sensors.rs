@@ -83,6 +83,11 @@ impl OpenLoop {
         }
     }
 
+    /// Records `duty_permille` as the open-loop duty of the last tick (the calibration's).
+    pub fn note_duty(&mut self, duty_permille: i16) {
+        self.last.nudge_duty_permille = duty_permille;
+    }
+
     /// The readings of the last tick.
     ///
     /// # Errors

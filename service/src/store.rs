@@ -383,6 +383,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
             self.reconfigure(defaults.0, defaults.1)?;
         }
         self.service.settings.stored = boot.set;
+        self.apply_stored_calibration();
         Ok((boot.report, faults))
     }
 

@@ -162,36 +162,8 @@ impl Record for Config {
 }
 
 /// The calibration of a real build (the result of the calibration sequence), in integer
-/// units of the protocol's kind.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Calibration {
-    /// Motor polarity, ±1 (−1: the bridge's sense is reversed in software).
-    pub motor_polarity: i8,
-    /// Link encoder direction, ±1.
-    pub encoder_direction: i8,
-    /// Gear potentiometer direction, ±1.
-    pub pot_direction: i8,
-    /// Current-sense offset, ADC counts, |·| ≤ [`CURRENT_OFFSET_MAX`].
-    pub current_offset_counts: i16,
-    /// Pot-to-encoder alignment offset, pot counts, |·| ≤ [`POT_OFFSET_MAX`].
-    pub pot_offset_counts: i16,
-    /// Motor winding resistance, mΩ, > 0.
-    pub resistance_mohm: u32,
-    /// Back-EMF constant, µV·s/rad, > 0.
-    pub back_emf_uv_s_per_rad: u32,
-    /// Gear friction torque at the output, µN·m.
-    pub gear_friction_unm: u32,
-    /// Link inertia, kg·mm², as [`Config::link_inertia_kg_mm2`].
-    pub link_inertia_kg_mm2: u32,
-    /// Identified joint stiffness, mN·m/rad; `None` where the sensors cannot resolve it.
-    pub stiffness_mnm_per_rad: Option<u32>,
-    /// Clutch length from that stiffness, µm, in [`CLUTCH_MIN_UM`]..=[`CLUTCH_MAX_UM`];
-    /// `None` where the stiffness is not resolved.
-    pub clutch_length_um: Option<u32>,
-    /// Relative 1-σ uncertainty of the stiffness, ‰, ≤ 1000.
-    pub stiffness_uncertainty_permille: u16,
-}
+/// units: the protocol's [`protocol::Calibration`], stored as it is sent (one definition).
+pub use protocol::Calibration;
 
 /// Largest |current-sense offset|, ADC counts: half the 12-bit scale.
 pub const CURRENT_OFFSET_MAX: i16 = model::sensors::ADC_MID as i16;

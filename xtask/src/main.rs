@@ -10,6 +10,7 @@
 
 mod bench;
 mod board;
+mod calibrate;
 mod checks;
 mod ci_script;
 mod cmd;
@@ -99,6 +100,13 @@ enum Task {
     /// word write of a save and of a factory reset, 1 000 saves (`VSA_PERSISTENCE_CUTS=N`
     /// sweeps every N-th cut, `VSA_PERSISTENCE_SAVES=N` makes N saves).
     Persistence {
+        /// Emulated board.
+        #[arg(long, value_enum, default_value = "qemu-m4")]
+        board: Board,
+    },
+    /// `vsa --qemu calibrate` on seeded off-nominal builds, a power cycle and a broken
+    /// build (`VSA_CALIBRATION_BUILDS=N` calibrates N builds).
+    Calibration {
         /// Emulated board.
         #[arg(long, value_enum, default_value = "qemu-m4")]
         board: Board,
@@ -194,6 +202,7 @@ fn dispatch(task: Task) -> Result<ExitCode> {
         Task::Flash => flash::run(),
         Task::E2e { board } => board_check(board, e2e::run),
         Task::Persistence { board } => board_check(board, persistence::run),
+        Task::Calibration { board } => board_check(board, calibrate::check),
         Task::Dynamixel { board } => board_check(board, dynamixel::run),
         Task::DecodeLog { elf, log } => {
             let format = defmt_log::LogFormat::from_elf(&elf)?;

@@ -173,6 +173,12 @@ pub fn run() -> Result<bool> {
         tally.record(&format!("dynamixel-sdk on {}", board.feature()), result);
     }
 
+    for (board, elf) in elfs.iter().filter(|(b, _)| b.qemu_machine().is_some()) {
+        let result = crate::calibrate::check(*board, elf)
+            .map(|r| println!("[{} calibration] {r}", board.feature()));
+        tally.record(&format!("vsa calibrate on {}", board.feature()), result);
+    }
+
     if !tally.failures.is_empty() {
         println!("xtask test: failed: {}", tally.failures.join(", "));
     }

@@ -6,6 +6,7 @@
 
 pub mod bus;
 mod bus_settings;
+mod calibrate;
 mod config;
 mod impedance;
 mod quantities;
@@ -522,6 +523,9 @@ pub enum BoardCommand {
     Faults(config::FaultsArgs),
     /// The Dynamixel bus settings, e.g. `bus --protocol 1` or `bus --id 4 --baud 57600`
     Bus(bus_settings::BusArgs),
+    /// Calibrate a real build (motor disabled): polarity, sensor directions and offsets,
+    /// motor resistance and back-EMF, link inertia; stored on the board (`--show`: print it)
+    Calibrate(calibrate::CalibrateArgs),
 }
 
 /// Arguments of `gains`.
@@ -610,6 +614,7 @@ enum Action {
     Config(config::ConfigCommand),
     Faults(config::FaultsArgs),
     Bus(client::protocol::BusChange),
+    Calibrate(calibrate::CalibrateArgs),
 }
 
 /// Checks a command's arguments (errors name the command and the argument).
@@ -639,6 +644,7 @@ fn plan(cmd: &BoardCommand) -> CliResult<Action> {
         BoardCommand::Hold => Action::Hold,
         BoardCommand::Config(c) => Action::Config(*c),
         BoardCommand::Faults(f) => Action::Faults(*f),
+        BoardCommand::Calibrate(a) => Action::Calibrate(*a),
         BoardCommand::Impedance(a) => Action::Impedance(impedance::plan(a)?),
         BoardCommand::Bus(a) => Action::Bus(bus_settings::plan(a)?),
         BoardCommand::Gains(g) => Action::Gains(plan_gains(g)?),
@@ -814,6 +820,7 @@ fn exec(action: &Action, s: &mut Session) -> CliResult<()> {
         Action::Faults(args) => config::faults(c, *args),
         Action::Impedance(p) => return impedance::run(s, p),
         Action::Bus(c) => return bus_settings::run(s, c),
+        Action::Calibrate(a) => return calibrate::run(s, a),
     };
     match r {
         Ok(text) => {
@@ -1054,6 +1061,7 @@ fn status_text(st: &Status) -> String {
             "stored config",
             config::stored_line(st.differs_from_stored).to_string(),
         ),
+        ("calibration", calibrate::progress_text(st.calibration)),
     ];
     let mut s = String::new();
     for (k, v) in rows {

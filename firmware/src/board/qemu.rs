@@ -70,7 +70,9 @@ impl Board for Qemu {
     /// Reads the run's options from the semihosting command line (`-semihosting-config
     /// arg=…`); the first argument is the program name.
     fn run_config() -> RunConfig {
-        let Ok(args) = semihosting::experimental::env::args::<256>() else {
+        // Bytes of the command line: a build's dozen `--plant NAME=VALUE` and a `--flash`
+        // path fit (init's stack only: repainted before the stack is measured).
+        let Ok(args) = semihosting::experimental::env::args::<1024>() else {
             defmt::warn!("no semihosting command line; running the default time");
             return RunConfig::new(IdleMode::Spin);
         };

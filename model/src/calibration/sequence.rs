@@ -101,6 +101,8 @@ pub enum Failure {
     Implausible,
     /// Stopped by the host.
     Aborted,
+    /// The supervisor latched a fault (it stays armed throughout).
+    Fault,
 }
 
 impl Failure {
@@ -123,6 +125,50 @@ impl Failure {
             Failure::SensorRead => "sensor-read",
             Failure::Implausible => "implausible",
             Failure::Aborted => "aborted",
+            Failure::Fault => "fault",
+        }
+    }
+
+    /// Every failure, in code order ([`Failure::code`] is the index + 1).
+    pub const ALL: [Failure; 16] = [
+        Failure::CurrentRail,
+        Failure::CurrentNoisy,
+        Failure::CurrentDead,
+        Failure::PotRail,
+        Failure::PotNoisy,
+        Failure::PotDead,
+        Failure::EncoderDead,
+        Failure::MotorOpen,
+        Failure::MotorBlocked,
+        Failure::OverCurrent,
+        Failure::EncoderJump,
+        Failure::Timeout,
+        Failure::SensorRead,
+        Failure::Implausible,
+        Failure::Aborted,
+        Failure::Fault,
+    ];
+
+    /// The failure's number on the wire (1-based; 0 is none).
+    #[must_use]
+    pub const fn code(self) -> u8 {
+        let mut i = 0;
+        while i < Failure::ALL.len() {
+            if Failure::ALL[i] as u8 == self as u8 {
+                return i as u8 + 1;
+            }
+            i += 1;
+        }
+        0
+    }
+
+    /// The failure with wire number `code`, if any.
+    #[must_use]
+    pub const fn from_code(code: u8) -> Option<Failure> {
+        if code == 0 || code as usize > Failure::ALL.len() {
+            None
+        } else {
+            Some(Failure::ALL[code as usize - 1])
         }
     }
 
@@ -145,6 +191,7 @@ impl Failure {
             Failure::SensorRead => "a sensor driver failed: check the wiring of the sensor named in the log",
             Failure::Implausible => "the motor's resistance or back-EMF came out implausible: check the supply voltage setting and the motor",
             Failure::Aborted => "stopped by the host",
+            Failure::Fault => "the supervisor latched a fault (see vsa status): clear it and check what it names",
         }
     }
 }
@@ -376,6 +423,14 @@ impl Calibration {
     /// Stops now (the next step returns the motor off).
     pub fn abort(&mut self) {
         self.fail(Failure::Aborted);
+    }
+
+    /// Stops now for `why` (e.g. [`Failure::Fault`]: the supervisor latched one); the next
+    /// step returns the motor off.
+    pub fn stop(&mut self, why: Failure) {
+        if self.phase != Phase::Finished {
+            self.fail(why);
+        }
     }
 
     fn fail(&mut self, f: Failure) -> Option<i16> {

@@ -5,10 +5,11 @@
 use proptest::prelude::*;
 use proptest::test_runner::Config;
 use protocol::{
-    Decoder, Device, ErrorCode, FaultCode, FaultRecord, FaultSet, Frame, Gains, Handler,
-    LimitFlags, Limits, LoggedFault, Reply, Request, State, Status, TelemetrySample, CLUTCH_MAX_UM,
-    CLUTCH_MIN_UM, KD_MAX, KI_MAX, KP_MAX, MOVE_DURATION_MAX_MS, SINE_AMPLITUDE_MAX_URAD,
-    SINE_FREQUENCY_MAX_MHZ, SINE_FREQUENCY_MIN_MHZ, TARGET_MAX_URAD,
+    Calibration, CalibrationProgress, CalibrationReport, Decoder, Device, ErrorCode, FaultCode,
+    FaultRecord, FaultSet, Frame, Gains, Handler, LimitFlags, Limits, LoggedFault, Reply, Request,
+    State, Status, TelemetrySample, CLUTCH_MAX_UM, CLUTCH_MIN_UM, KD_MAX, KI_MAX, KP_MAX,
+    MOVE_DURATION_MAX_MS, SINE_AMPLITUDE_MAX_URAD, SINE_FREQUENCY_MAX_MHZ, SINE_FREQUENCY_MIN_MHZ,
+    TARGET_MAX_URAD,
 };
 
 /// Proptest configuration: `default_cases` cases unless `PROPTEST_CASES` is set;
@@ -187,6 +188,8 @@ pub fn request() -> impl Strategy<Value = Request> {
                     baud_bps
                 }
             )),
+        any::<bool>().prop_map(|start| Request::Calibrate { start }),
+        Just(Request::GetCalibration),
     ]
 }
 
@@ -219,6 +222,8 @@ pub fn request_index(r: &Request) -> u32 {
         Request::FaultsLog { .. } => 23,
         Request::Impedance { .. } => 24,
         Request::SetBus(_) => 25,
+        Request::Calibrate { .. } => 26,
+        Request::GetCalibration => 27,
     }
 }
 
@@ -234,6 +239,7 @@ pub fn reply_index(r: &Reply) -> u32 {
         Reply::FaultPersists(_) => 6,
         Reply::Sensors(_) => 7,
         Reply::FaultsLog { .. } => 8,
+        Reply::Calibration(_) => 9,
     }
 }
 
@@ -276,11 +282,13 @@ pub fn status() -> impl Strategy<Value = Status> {
             any::<u32>(),
             any::<bool>(),
         ),
+        calibration_progress(),
     )
         .prop_map(
             |(
                 (state, faults, first, limits, clutch, k),
                 (tick, moving, rate, dropped, errors, differs),
+                calibration,
             )| {
                 Status {
                     state,
@@ -295,7 +303,52 @@ pub fn status() -> impl Strategy<Value = Status> {
                     telemetry_dropped: dropped,
                     protocol_errors: errors,
                     differs_from_stored: differs,
+                    calibration,
                 }
+            },
+        )
+}
+
+pub fn calibration_progress() -> impl Strategy<Value = CalibrationProgress> {
+    prop_oneof![
+        Just(CalibrationProgress::Idle),
+        (any::<u8>(), any::<u8>())
+            .prop_map(|(phase, percent)| CalibrationProgress::Running { phase, percent }),
+        Just(CalibrationProgress::Done),
+        any::<u8>().prop_map(|failure| CalibrationProgress::Failed { failure }),
+    ]
+}
+
+pub fn calibration() -> impl Strategy<Value = Calibration> {
+    (
+        (
+            any::<i8>(),
+            any::<i8>(),
+            any::<i8>(),
+            any::<i16>(),
+            any::<i16>(),
+        ),
+        (any::<u32>(), any::<u32>(), any::<u32>(), any::<u32>()),
+        (
+            prop::option::of(any::<u32>()),
+            prop::option::of(any::<u32>()),
+            any::<u16>(),
+        ),
+    )
+        .prop_map(
+            |((m, e, p, ci, po), (r, ke, f, j), (k, l, u))| Calibration {
+                motor_polarity: m,
+                encoder_direction: e,
+                pot_direction: p,
+                current_offset_counts: ci,
+                pot_offset_counts: po,
+                resistance_mohm: r,
+                back_emf_uv_s_per_rad: ke,
+                gear_friction_unm: f,
+                link_inertia_kg_mm2: j,
+                stiffness_mnm_per_rad: k,
+                clutch_length_um: l,
+                stiffness_uncertainty_permille: u,
             },
         )
 }
@@ -367,6 +420,12 @@ pub fn reply() -> impl Strategy<Value = Reply> {
                     fault: FaultRecord { code, value, tick }
                 }),
             }),
+        (calibration_progress(), prop::option::of(calibration())).prop_map(
+            |(progress, calibration)| Reply::Calibration(CalibrationReport {
+                progress,
+                calibration
+            })
+        ),
     ]
 }
 
@@ -400,6 +459,8 @@ pub enum Call {
     FaultsLog(u8),
     Impedance(i32, u32, u32, i32),
     SetBus(protocol::BusChange),
+    Calibrate(bool),
+    Calibration,
 }
 
 /// A device that records every call and keeps a little state, refusing like the
@@ -655,6 +716,7 @@ impl Device for MockDevice {
             // The handler must overwrite this.
             protocol_errors: 0xDEAD,
             differs_from_stored: false,
+            calibration: CalibrationProgress::Idle,
         }
     }
 
@@ -681,6 +743,18 @@ impl Device for MockDevice {
     fn set_bus(&mut self, change: &protocol::BusChange) -> Result<(), ErrorCode> {
         self.calls.push(Call::SetBus(*change));
         Ok(())
+    }
+    fn calibrate(&mut self, start: bool) -> Result<(), ErrorCode> {
+        self.calls.push(Call::Calibrate(start));
+        Ok(())
+    }
+
+    fn calibration(&mut self) -> Result<CalibrationReport, ErrorCode> {
+        self.calls.push(Call::Calibration);
+        Ok(CalibrationReport {
+            progress: CalibrationProgress::Idle,
+            calibration: None,
+        })
     }
 }
 
@@ -734,6 +808,8 @@ pub fn expected_call(r: &Request) -> Option<Call> {
             torque_unm,
         ),
         Request::SetBus(change) => Call::SetBus(change),
+        Request::Calibrate { start } => Call::Calibrate(start),
+        Request::GetCalibration => Call::Calibration,
     })
 }
 

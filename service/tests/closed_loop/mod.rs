@@ -54,6 +54,14 @@ impl Bench {
 
     /// One control tick; no fault may latch.
     pub fn step(&mut self) -> (TickInput, TickOutput) {
+        let (input, out) = self.tick();
+        assert!(out.new_fault.is_none(), "fault {:?}", out.new_fault);
+        (input, out)
+    }
+
+    /// One control tick (the firmware's: `Actuator::control`), then what the command task
+    /// does every tick (a finished calibration applied).
+    pub fn tick(&mut self) -> (TickInput, TickOutput) {
         let a = &mut self.actuator.0;
         let r = self.world.tick(self.lines, a.servo.controller().schedule());
         let raw = TickInput {
@@ -62,13 +70,13 @@ impl Bench {
             current_adc: r.current_adc,
             read_error: None,
         };
-        let out = a.tick(&raw);
+        let (out, demand) = a.control(&raw);
         let input = *a.pipeline.input();
-        self.lines = BridgeLines::for_demand(a.open_loop.demand(&raw, &out));
+        self.lines = BridgeLines::for_demand(demand);
         // The live values the status and the Dynamixel registers report, as the firmware's
         // tick publishes them.
         let _ = a.after_tick(&input, &out);
-        assert!(out.new_fault.is_none(), "fault {:?}", out.new_fault);
+        self.service.finish_calibration(&mut self.actuator);
         (input, out)
     }
 }

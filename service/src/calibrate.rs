@@ -1,0 +1,276 @@
+//! The calibration sequence on the device (docs/calibration.md): started and stopped by
+//! [`protocol::Request::Calibrate`], one step per control tick from the disabled state
+//! ([`Actuator::control`]), its result applied and stored by the command task
+//! ([`Service::finish_calibration`]) and the stored one applied at boot (the controller's
+//! motor model and link inertia, and the sensor correction installed in the actuator's
+//! correction layer, `Actuator::pipeline`).
+//!
+//! The supervisor stays armed throughout: the servo ticks as when disabled (its controller
+//! tracks the sensors, its bridge demand off) behind the sensor-correction layer in force
+//! (`model::calibration::pipeline`: the current about the offset measured at boot), and
+//! every check runs on the tick's readings but the pot's: its direction and gain are what
+//! the run measures, and a pot read the wrong way or 10 % off would show the ±0.6 rad moves
+//! as a deflection far beyond the beams'. The beams are protected instead by the run's
+//! current bound (half their capacity at the longest clutch length, checked every tick by
+//! the sequence) and the supervisor's current-based torque check against the capacity.
+
+use model::calibration::correction::{SensorCorrection, Sign, POT_CENTER};
+use model::calibration::sequence::{
+    Calibration as Sequence, CalibrationConfig, CalibrationResult, Failure, Progress,
+};
+use model::sensors::{ADC_MID, ENCODER_COUNTS};
+use model::servo::{BridgeDemand, ServoState, TickInput, TickOutput};
+use model::Inertia;
+use protocol::{Calibration, CalibrationProgress, CalibrationReport, ErrorCode};
+use rtic_core::Mutex;
+
+use crate::{Actuator, Service, ServiceDevice};
+
+/// Phase reported while the command task applies and stores a finished run.
+const APPLYING_PHASE: u8 = model::calibration::sequence::PHASES;
+
+/// The calibration state of the actuator (part of [`Actuator`]).
+#[derive(Clone, Debug, Default)]
+pub struct Calibrator {
+    /// The sequence running, if any.
+    run: Option<Sequence>,
+    /// A finished run's result the command task has not applied yet.
+    pending: Option<CalibrationResult>,
+    progress: CalibrationProgress,
+}
+
+impl Calibrator {
+    /// Where the sequence is.
+    #[must_use]
+    pub const fn progress(&self) -> CalibrationProgress {
+        self.progress
+    }
+
+    /// Whether a run drives the bridge (or waits to be applied).
+    #[must_use]
+    pub const fn running(&self) -> bool {
+        matches!(self.progress, CalibrationProgress::Running { .. })
+    }
+
+    /// Stops a run (the next tick turns the motor off).
+    pub fn abort(&mut self) {
+        if let Some(run) = self.run.as_mut() {
+            run.abort();
+        }
+    }
+
+    fn failed(&mut self, why: Failure) {
+        self.run = None;
+        self.pending = None;
+        self.progress = CalibrationProgress::Failed {
+            failure: why.code(),
+        };
+    }
+
+    /// One tick of a run: the raw readings `raw`, the servo's output `out` of this tick
+    /// (a fault it latched ends the run). Returns the bridge demand.
+    fn step(&mut self, raw: &TickInput, out: &TickOutput) -> BridgeDemand {
+        let Some(run) = self.run.as_mut() else {
+            return BridgeDemand::Off;
+        };
+        if out.new_fault.is_some() || out.state != ServoState::Disabled {
+            run.stop(Failure::Fault);
+        }
+        let duty = run.step(raw);
+        match run.progress() {
+            Progress::Running { phase, percent } => {
+                self.progress = CalibrationProgress::Running { phase, percent };
+            }
+            Progress::Done => {
+                self.pending = run.result().copied();
+                self.run = None;
+                self.progress = CalibrationProgress::Running {
+                    phase: APPLYING_PHASE,
+                    percent: 99,
+                };
+            }
+            Progress::Failed(why) => self.failed(why),
+        }
+        duty.map_or(BridgeDemand::Off, BridgeDemand::Drive)
+    }
+}
+
+impl Actuator {
+    /// One control tick on this tick's raw readings `raw` ([`Actuator::tick`]: the
+    /// correction layer and the servo) and the bridge demand: the servo's own, a nudge's,
+    /// or the calibration run's (module docs). Records the raw readings.
+    pub fn control(&mut self, raw: &TickInput) -> (TickOutput, BridgeDemand) {
+        if !self.calibration.running() {
+            let out = self.tick(raw);
+            let demand = self.open_loop.demand(raw, &out);
+            return (out, demand);
+        }
+        // The supervisor's view: the pot hidden (module docs).
+        let out = self.tick(&TickInput {
+            gear_pot: None,
+            ..*raw
+        });
+        // The raw readings for `vsa sensors` (no nudge runs: the start refused it).
+        let _ = self.open_loop.demand(raw, &out);
+        let demand = self.calibration.step(raw, &out);
+        self.open_loop.note_duty(match demand {
+            BridgeDemand::Drive(d) => d,
+            BridgeDemand::Off => 0,
+        });
+        (out, demand)
+    }
+}
+
+/// The result of a run as the store keeps it.
+fn record(r: &CalibrationResult) -> Calibration {
+    let c = &r.correction;
+    let sat_u32 = |v: i64| u32::try_from(v.max(0)).unwrap_or(u32::MAX);
+    let offset = ((i64::from(c.current_offset_q16) + (1 << 15)) >> 16) - i64::from(ADC_MID);
+    let pot_offset = ((i64::from(c.pot_center_q16) + (1 << 15)) >> 16) - i64::from(POT_CENTER);
+    Calibration {
+        motor_polarity: c.motor_polarity.value() as i8,
+        encoder_direction: c.encoder_direction.value() as i8,
+        pot_direction: c.pot_direction.value() as i8,
+        current_offset_counts: offset.clamp(-i64::from(ADC_MID), i64::from(ADC_MID)) as i16,
+        pot_offset_counts: pot_offset as i16,
+        resistance_mohm: sat_u32(r.resistance_mohm.into()),
+        back_emf_uv_s_per_rad: sat_u32(r.back_emf_uv_s_per_rad.into()),
+        gear_friction_unm: sat_u32(r.gear_friction_unm.into()),
+        // kg·m² × 10⁹ → kg·mm² (× 10⁶), rounded, at least the controller's minimum.
+        link_inertia_kg_mm2: sat_u32((r.link_inertia_nano + 500) / 1000)
+            .max(model::control::MIN_INERTIA as u32),
+        stiffness_mnm_per_rad: None,
+        clutch_length_um: None,
+        stiffness_uncertainty_permille: 1000,
+    }
+}
+
+/// The sensor correction of a stored calibration (the pot's gain is not stored: nominal).
+fn correction(c: &Calibration) -> SensorCorrection {
+    let sign = |v: i8| if v < 0 { Sign::Minus } else { Sign::Plus };
+    SensorCorrection {
+        motor_polarity: sign(c.motor_polarity),
+        encoder_direction: sign(c.encoder_direction),
+        pot_direction: sign(c.pot_direction),
+        pot_center_q16: (i32::from(POT_CENTER) + i32::from(c.pot_offset_counts)) << 16,
+        current_offset_q16: (i32::from(ADC_MID) + i32::from(c.current_offset_counts)) << 16,
+        ..SensorCorrection::NOMINAL
+    }
+}
+
+impl Service {
+    /// Applies and stores a run that has just finished (the command task calls this every
+    /// tick; nothing to do most of the time). A result the controller refuses ends the
+    /// run as `implausible`; a store that fails leaves the result in force until the next
+    /// boot (the progress says done: `vsa calibrate --show` reads it back).
+    pub fn finish_calibration(&mut self, actuator: &mut impl Mutex<T = Actuator>) {
+        let Some(result) = actuator.lock(|a| a.calibration.pending.take()) else {
+            return;
+        };
+        let cal = record(&result);
+        let applied = self
+            .device(actuator)
+            .apply_calibration(&cal, Some(result.correction));
+        let outcome = applied.and_then(|()| match self.persist_calibration(cal, actuator) {
+            // In force without a store (a board without flash): the set keeps it.
+            Ok(()) | Err(ErrorCode::Storage) => Ok(()),
+            Err(e) => Err(e),
+        });
+        actuator.lock(|a| match outcome {
+            Ok(()) => a.calibration.progress = CalibrationProgress::Done,
+            Err(_) => a.calibration.failed(Failure::Implausible),
+        });
+    }
+}
+
+impl Service {
+    /// The Dynamixel Calibration State register's value (`dynamixel::table::calibration`):
+    /// running, failed (the last run), calibrated (a calibration in force) or none.
+    pub fn calibration_register(&self, actuator: &mut impl Mutex<T = Actuator>) -> i32 {
+        use dynamixel::table::calibration as reg;
+        match actuator.lock(|a| a.calibration.progress) {
+            CalibrationProgress::Running { .. } => reg::RUNNING,
+            CalibrationProgress::Failed { .. } => reg::FAILED,
+            _ if self.calibration().is_some() => reg::CALIBRATED,
+            _ => reg::UNCALIBRATED,
+        }
+    }
+}
+
+impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
+    /// [`protocol::Request::Calibrate`].
+    pub(crate) fn calibrate(&mut self, start: bool) -> Result<(), ErrorCode> {
+        if !start {
+            self.actuator.lock(|a| a.calibration.abort());
+            return Ok(());
+        }
+        // Configuration time: the bound and the duty from the design and the datasheet.
+        let cfg = CalibrationConfig::new(
+            &self.service.design,
+            &self.service.config.motor,
+            Sign::Plus,
+            ENCODER_COUNTS,
+        )
+        .map_err(|_| ErrorCode::OutOfRange)?;
+        self.actuator.lock(|a| {
+            // Not during the correction layer's boot window (motor off, no checks).
+            if a.servo.state() != ServoState::Disabled
+                || a.open_loop.running()
+                || !a.pipeline.aligned()
+            {
+                return Err(ErrorCode::NotAllowed);
+            }
+            if a.calibration.running() {
+                return Err(ErrorCode::Busy);
+            }
+            a.calibration.run = Some(Sequence::new(&cfg));
+            a.calibration.pending = None;
+            a.calibration.progress = CalibrationProgress::Running {
+                phase: 1,
+                percent: 0,
+            };
+            Ok(())
+        })
+    }
+
+    /// [`protocol::Request::GetCalibration`].
+    pub(crate) fn calibration_report(&mut self) -> CalibrationReport {
+        CalibrationReport {
+            progress: self.actuator.lock(|a| a.calibration.progress),
+            calibration: self.service.calibration(),
+        }
+    }
+
+    /// Puts `cal` in force: the motor's resistance and back-EMF and the link inertia for
+    /// the controller, the sensor correction (`correction`, else the one `cal` gives).
+    pub(crate) fn apply_calibration(
+        &mut self,
+        cal: &Calibration,
+        correction: Option<SensorCorrection>,
+    ) -> Result<(), ErrorCode> {
+        let mut config = self.service.config;
+        config.motor.resistance_ohm =
+            fixed::types::I32F32::from_bits(crate::milli_to_q32(cal.resistance_mohm.into()));
+        config.motor.back_emf =
+            fixed::types::I32F32::from_bits(crate::micro_to_q32(cal.back_emf_uv_s_per_rad.into()));
+        config.link_inertia =
+            Inertia::from_int(i32::try_from(cal.link_inertia_kg_mm2).unwrap_or(i32::MAX));
+        let correction = correction.unwrap_or_else(|| self::correction(cal));
+        // Checked before anything changes; installing it starts the layer's boot window
+        // (the encoder aligned to the pot again in the new frame, motor off).
+        model::calibration::correction::Corrector::new(&correction)
+            .map_err(|_| ErrorCode::OutOfRange)?;
+        self.reconfigure(config, self.service.supervision)?;
+        self.actuator
+            .lock(|a| a.pipeline.install(&correction))
+            .map_err(|_| ErrorCode::OutOfRange)
+    }
+
+    /// At boot and on `load`: the stored calibration in force, if any (one the controller
+    /// refuses is left out, the datasheet values stay).
+    pub(crate) fn apply_stored_calibration(&mut self) {
+        if let Some(cal) = self.service.calibration() {
+            let _ = self.apply_calibration(&cal, None);
+        }
+    }
+}

@@ -1,0 +1,149 @@
+//! The calibration sequence through the protocol against the simulated actuator of a
+//! serving board: started from the disabled state, followed in the status, its result
+//! applied to the controller and reported; refused while enabled; stopped by the host.
+//! (The sequence's accuracy over random builds: host-tests/tests/calibration.rs.)
+
+use model::calibration::sequence::Failure;
+use protocol::{CalibrationProgress, CalibrationReport, ErrorCode, Reply, Request};
+
+mod closed_loop;
+mod common;
+
+use closed_loop::Bench;
+
+fn report(b: &mut Bench) -> CalibrationReport {
+    match b.ask(Request::GetCalibration) {
+        Reply::Calibration(r) => r,
+        other => panic!("GetCalibration answered {other:?}"),
+    }
+}
+
+fn progress(b: &mut Bench) -> CalibrationProgress {
+    match b.ask(Request::GetStatus) {
+        Reply::Status(s) => s.calibration,
+        other => panic!("GetStatus answered {other:?}"),
+    }
+}
+
+#[test]
+fn a_calibration_runs_from_disabled_and_its_result_drives_the_controller() {
+    let mut b = Bench::new(0.0);
+    for _ in 0..50 {
+        b.step();
+    }
+    assert_eq!(progress(&mut b), CalibrationProgress::Idle);
+    assert_eq!(report(&mut b).calibration, None);
+    assert_eq!(b.ask(Request::Calibrate { start: true }), Reply::Ok);
+    // The bridge is the sequence's: no nudge, no enable, no second start.
+    let busy = Reply::Error(ErrorCode::Busy);
+    let nudge = Request::Nudge {
+        duty_permille: 50,
+        duration_ms: 10,
+    };
+    assert_eq!(b.ask(nudge), busy);
+    assert_eq!(b.ask(Request::Enable), busy);
+    assert_eq!(b.ask(Request::Calibrate { start: true }), busy);
+    let mut last = 0;
+    let mut ticks = 0;
+    while let CalibrationProgress::Running { percent, .. } = progress(&mut b) {
+        assert!(percent >= last, "progress went back: {last} → {percent}");
+        last = percent;
+        b.step();
+        ticks += 1;
+        assert!(ticks < 30_000, "still running after {ticks} ticks");
+    }
+    let r = report(&mut b);
+    assert_eq!(r.progress, CalibrationProgress::Done, "after {ticks} ticks");
+    let c = r.calibration.expect("a calibration in force");
+    println!("{ticks} ticks: {c:?}");
+    // The served plant is the nominal AX-12A actuator (8 Ω, 1.94 V·s/rad, wired as
+    // the firmware expects, offset-free current sense).
+    assert_eq!(
+        (c.motor_polarity, c.encoder_direction, c.pot_direction),
+        (1, 1, 1)
+    );
+    assert!(c.current_offset_counts.abs() <= 2, "{c:?}");
+    assert!(
+        (c.resistance_mohm as f64 / 8000.0 - 1.0).abs() < 0.05,
+        "{c:?}"
+    );
+    assert!(
+        (c.back_emf_uv_s_per_rad as f64 / 1.94e6 - 1.0).abs() < 0.05,
+        "{c:?}"
+    );
+    assert_eq!(c.stiffness_mnm_per_rad, None);
+    // In force: the controller's motor model and link inertia are the measured ones.
+    let m = b.service.config().motor;
+    assert_eq!(
+        m.resistance_ohm.to_bits(),
+        service::milli_to_q32(c.resistance_mohm.into())
+    );
+    assert_eq!(
+        b.service.config().link_inertia.to_bits() >> 32,
+        i64::from(c.link_inertia_kg_mm2)
+    );
+    // Without a store the calibration is in force until the next boot.
+    assert_eq!(b.service.calibration(), Some(c));
+    // The new correction is installed: the correction layer aligns the encoder to the pot
+    // again first (motor off), then the loop closes on it: a move with no fault.
+    assert_eq!(b.ask(Request::Enable), Reply::Error(ErrorCode::NotAllowed));
+    for _ in 0..model::calibration::correction::BOOT_TICKS {
+        b.step();
+    }
+    assert_eq!(b.ask(Request::Enable), Reply::Ok);
+    let mv = Request::Move {
+        target_urad: 300_000,
+        duration_ms: 300,
+    };
+    assert_eq!(b.ask(mv), Reply::Ok);
+    for _ in 0..1000 {
+        b.step();
+    }
+    // Refused while enabled.
+    assert_eq!(
+        b.ask(Request::Calibrate { start: true }),
+        Reply::Error(ErrorCode::NotAllowed)
+    );
+}
+
+#[test]
+fn the_host_stops_a_calibration_and_the_motor_goes_off() {
+    let mut b = Bench::new(0.0);
+    assert_eq!(b.ask(Request::Calibrate { start: true }), Reply::Ok);
+    for _ in 0..600 {
+        b.step();
+    }
+    assert!(matches!(
+        progress(&mut b),
+        CalibrationProgress::Running { phase: 2.., .. }
+    ));
+    assert_eq!(b.ask(Request::Calibrate { start: false }), Reply::Ok);
+    b.step();
+    let aborted = Failure::Aborted.code();
+    assert_eq!(
+        progress(&mut b),
+        CalibrationProgress::Failed { failure: aborted }
+    );
+    assert_eq!(report(&mut b).calibration, None);
+    // Off: the gear coasts to a stop and stays.
+    for _ in 0..500 {
+        b.step();
+    }
+    let (at, _) = b.step();
+    for _ in 0..200 {
+        b.step();
+    }
+    let (later, _) = b.step();
+    assert_eq!(at.gear_pot, later.gear_pot);
+    // A disable stops one as well.
+    assert_eq!(b.ask(Request::Calibrate { start: true }), Reply::Ok);
+    for _ in 0..300 {
+        b.step();
+    }
+    assert_eq!(b.ask(Request::Disable), Reply::Ok);
+    b.step();
+    assert_eq!(
+        progress(&mut b),
+        CalibrationProgress::Failed { failure: aborted }
+    );
+}
