@@ -35,6 +35,7 @@ use protocol::{
 };
 use rtic_core::Mutex;
 
+pub mod correction;
 pub mod dynamixel;
 mod impedance;
 pub mod line;

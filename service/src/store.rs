@@ -381,6 +381,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
             self.reconfigure(defaults.0, defaults.1)?;
         }
         self.service.settings.stored = boot.set;
+        self.install_stored_correction();
         Ok((boot.report, faults))
     }
 
