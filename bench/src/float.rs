@@ -7,7 +7,8 @@
 //! `model`: on purpose, a comparison is only fair between the same steps):
 //!
 //! * [`FloatController::step`] is `model::control::Controller::step` (encoder unwrapping,
-//!   back-EMF observer, blended torque estimate, reference, feed-forward, free-play
+//!   back-EMF observer, blended torque estimate, reference, feed-forward (the two-mass
+//!   inverse for a sine), free-play
 //!   compensation, PID, current/duty window, braking governor, anti-windup);
 //! * [`FloatSupervisor::check`] is `model::supervisor::Supervisor::check` (every check, in
 //!   the same order, with the same latch);
@@ -35,7 +36,7 @@ use core::f32::consts::PI;
 
 use model::control::schedule::{
     CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM, IMPACT_SPEED_FRACTION,
-    OBSERVER_RATIO, RESISTANCE_TOLERANCE,
+    OBSERVER_RATIO, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM, REST_ZONE_FREE_PLAYS,
 };
 use model::control::{Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
@@ -127,10 +128,19 @@ pub struct FloatSchedule {
     obs_beta: f32,
     obs_beta2: f32,
     float_load: f32,
+    rest_zone: f32,
+    rest_load: f32,
+    rest_torque: f32,
     kd: f32,
     alpha: f32,
     ff_vel: f32,
     ff_acc: f32,
+    /// What a sine of ω takes off `ff_vel` and `ff_acc` per unit of c_ω = J_l·ω²/k
+    /// (`model::control::sine_feedforward`): (1000/V)·R·b_v/k_t and (1000/V)·R·J_g/k_t.
+    ff_sine_vel: f32,
+    ff_sine_acc: f32,
+    /// J_l/k, s² (c_ω = ω²·J_l/k).
+    jl_over_k: f32,
     ff_defl: f32,
     j_link: f32,
     inv_k: f32,
@@ -199,10 +209,16 @@ impl FloatSchedule {
             obs_beta: 2.0 * w_c / OBSERVER_RATIO as f32 * DT,
             obs_beta2: (w_c / OBSERVER_RATIO as f32) * (w_c / OBSERVER_RATIO as f32) * DT,
             float_load: i32f32(FLOAT_LOAD_NM.to_bits()) / c * dpv,
+            rest_zone: i32f32(REST_ZONE_FREE_PLAYS.to_bits()) * free_play,
+            rest_load: i32f32(REST_LOAD_NM.to_bits()) / c * dpv,
+            rest_torque: i32f32(REST_TORQUE_NM.to_bits()),
             kd,
             alpha: DT / (tau_f + DT),
             ff_vel: dpv * (ke + r * bv / kt),
             ff_acc: dpv * r * j / kt,
+            ff_sine_vel: dpv * r * bv / kt,
+            ff_sine_acc: dpv * r * j_g / kt,
+            jl_over_k: j_l / k,
             ff_defl: dpv * ke * 1000.0,
             j_link: j_l,
             inv_k: 1.0 / k,
@@ -458,6 +474,9 @@ pub struct FloatOutput {
 pub struct FloatController {
     s: FloatSchedule,
     traj: FloatTrajectory,
+    /// Feed-forward gains of the running reference (the two-mass inverse for a sine).
+    ff_vel: f32,
+    ff_acc: f32,
     started: bool,
     commanded: bool,
     enc_prev: u16,
@@ -474,6 +493,7 @@ pub struct FloatController {
     defl_valid: bool,
     theta_g: f32,
     theta_g_valid: bool,
+    rest_ticks: u8,
     w_bias: f32,
 }
 
@@ -483,6 +503,8 @@ impl FloatController {
     #[must_use]
     pub const fn new(s: FloatSchedule) -> Self {
         Self {
+            ff_vel: s.ff_vel,
+            ff_acc: s.ff_acc,
             s,
             traj: FloatTrajectory::new(0.0),
             started: false,
@@ -501,18 +523,30 @@ impl FloatController {
             defl_valid: false,
             theta_g: 0.0,
             theta_g_valid: false,
+            rest_ticks: 0,
             w_bias: 0.0,
         }
     }
 
     /// Starts a trajectory command.
     pub fn command(&mut self, cmd: Command) {
+        let s = &self.s;
+        (self.ff_vel, self.ff_acc) = match cmd {
+            Command::Sine { frequency, .. } => {
+                let w = i32f32(frequency.to_bits());
+                let c = s.jl_over_k * w * w;
+                (s.ff_vel - c * s.ff_sine_vel, s.ff_acc - c * s.ff_sine_acc)
+            }
+            _ => (s.ff_vel, s.ff_acc),
+        };
         self.traj.command(cmd);
         self.commanded = true;
     }
 
     /// Forgets the loop state (as `Controller::reset`).
     pub fn reset(&mut self) {
+        self.ff_vel = self.s.ff_vel;
+        self.ff_acc = self.s.ff_acc;
         self.started = false;
         self.commanded = false;
         self.w_link = 0.0;
@@ -525,6 +559,7 @@ impl FloatController {
         self.duty_prev = 0;
         self.defl_valid = false;
         self.theta_g_valid = false;
+        self.rest_ticks = 0;
         self.w_bias = 0.0;
     }
 
@@ -604,10 +639,22 @@ impl FloatController {
         }
         let e_g = r.position + self.defl_prev - self.theta_g;
         let e_p = if floating { e_g } else { e };
+        // Rest without load: the gear stays where it is.
+        let calm = libm::fabsf(self.integ) < s.rest_load
+            && libm::fabsf(tau) < s.rest_torque
+            && r.velocity == 0.0
+            && r.acceleration == 0.0
+            && libm::fabsf(e_raw) <= s.rest_zone;
+        self.rest_ticks = if calm {
+            self.rest_ticks.saturating_add(1)
+        } else {
+            0
+        };
+        let resting = self.rest_ticks >= 20;
         self.w_ref += s.alpha * (r.velocity - self.w_ref);
 
         // --- feed-forward ---
-        let u_ff = s.ff_vel * r.velocity + s.ff_acc * r.acceleration;
+        let u_ff = self.ff_vel * r.velocity + self.ff_acc * r.acceleration;
         let u_i = self.integ;
         let tau_ref = s.j_link * r.acceleration + s.torque_per_duty * u_i;
         let side = (s.fp_slope * tau_ref).clamp(-s.free_play, s.free_play);
@@ -621,7 +668,8 @@ impl FloatController {
         self.defl_valid = true;
 
         // --- PID ---
-        let u = u_ff + u_defl + s.kp * e_p + u_i + s.kd * (self.w_ref - self.w_fb);
+        let u_p = if resting { 0.0 } else { s.kp * e_p };
+        let u = u_ff + u_defl + u_p + u_i + s.kd * (self.w_ref - self.w_fb);
 
         // --- limits ---
         let emf = s.duty_per_w * w_gear;
@@ -668,7 +716,7 @@ impl FloatController {
         };
 
         // --- integrator ---
-        let inc = if in_count {
+        let inc = if in_count || resting {
             let slip = w_gear - r.velocity;
             if libm::fabsf(slip) <= s.w_deadband + s.w_bias_per_amp * libm::fabsf(current) {
                 0.0

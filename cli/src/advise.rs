@@ -9,8 +9,9 @@
 //! the whole adjustable range [t_c, l]) the task runs in closed loop on the host — the
 //! `model` crate's controller against the `plant` crate's simulated actuator, through
 //! [`crate::figures::energy::energy_per_cycle`], the same function as the
-//! `energy_per_cycle` figure, so the answer includes what the controller really does — and
-//! the row gives:
+//! `energy_per_cycle` figure, so the answer includes what the controller really does; the
+//! link is held for [`SETTLE_BANDWIDTHS`]/ω_c first at soft settings, so that the averaged
+//! cycles are the task's, not the controller's take-up of the load — and the row gives:
 //!
 //! * the stiffness k(L) (Euler–Bernoulli) and the **natural frequency** of the actuator at
 //!   that setting: the coupling mode in which gear and link swing against each other with
@@ -43,7 +44,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use fixed::types::I32F32;
-use model::control::{Command, Config};
+use model::control::{Command, Config, Schedule};
 use model::dynamics::Tuning;
 use model::{Angle, BeamModel, Design, Frequency, Inertia, Length};
 use plotters::prelude::SeriesLabelPosition;
@@ -52,7 +53,9 @@ use serde::Serialize;
 use crate::design::{parse_design, BeamArgs};
 use crate::error::{CliError, CliResult};
 use crate::explore::positive;
-use crate::figures::energy::{energy_of_commands, energy_per_cycle, CycleEnergy, Motion};
+use crate::figures::energy::{
+    energy_of_commands, energy_per_cycle, CycleEnergy, Motion, SETTLE_TICKS,
+};
 use crate::figures::plot::{Figure, Panel, Series, COLORS};
 use crate::format::{sig, Table};
 use crate::units::{self, Kind};
@@ -67,6 +70,14 @@ const AVERAGED_S: f64 = 2.0;
 const LOOK_AHEAD: usize = 4;
 /// A row tracks the task when its RMS error is at most this fraction of the motion's RMS.
 const TRACKING_TOLERANCE: f64 = 0.1;
+/// Hold before the task, in units of 1/ω_c: the controller takes up a load with its three
+/// poles at ω_c (docs/design.md §11), so at soft settings (ω_c down to a few rad/s) the
+/// energy figure's 0.2 s hold leaves the take-up in the averaged cycles. Measured with
+/// `--beam-length 20mm --inertia 3.2e-3kgm2 --load 0.17Nm` at L = 15 mm (ω_c = 5.2 rad/s):
+/// the link is within 1 mrad of its reference 3.9 s after the load is applied.
+const SETTLE_BANDWIDTHS: f64 = 20.0;
+/// Longest hold, ticks (ω_c ≥ 2 rad/s).
+const MAX_SETTLE_TICKS: u32 = 10_000;
 
 /// The clutch setting that saves energy for a periodic task (closed-loop simulation).
 #[derive(Args, Debug, Default)]
@@ -162,6 +173,10 @@ pub fn run(args: &AdviseArgs) -> CliResult<String> {
             Some(coupling_mode(k.get().to_num(), jg, jl, task.gravity_nm) / std::f64::consts::TAU)
         };
         let cfg = config(&design, &task, len)?;
+        let motion = Motion {
+            settle_ticks: settle_ticks(&design, &cfg),
+            ..motion
+        };
         let run = match &task.trajectory {
             None => energy_per_cycle(&design, &cfg, &motion),
             Some(tr) => match tr.command_at(0) {
@@ -519,7 +534,23 @@ fn motion(task: &Task) -> Motion {
             Some(p) => (AVERAGED_S * 1000.0 / f64::from(p)).ceil().max(1.0) as u32,
             None => (AVERAGED_S * task.frequency_hz).ceil().max(1.0) as u32,
         },
+        settle_ticks: SETTLE_TICKS,
     }
+}
+
+/// Ticks of hold before the task at the setting `cfg`: the energy figure's
+/// [`SETTLE_TICKS`], or [`SETTLE_BANDWIDTHS`]/ω_c if longer (ω_c the controller's scheduled
+/// bandwidth, [`Schedule::bandwidth`]); `SETTLE_TICKS` for a setting the controller rejects.
+fn settle_ticks(d: &Design, cfg: &Config) -> u32 {
+    Schedule::new(d, cfg).map_or(SETTLE_TICKS, |s| {
+        let w = f(s.bandwidth().get());
+        let ticks = (SETTLE_BANDWIDTHS / w * 1000.0).ceil();
+        if ticks.is_finite() && ticks > f64::from(SETTLE_TICKS) {
+            ticks.min(f64::from(MAX_SETTLE_TICKS)) as u32
+        } else {
+            SETTLE_TICKS
+        }
+    })
 }
 
 /// "Resonance … is out of reach": `k` needed, `ratio` times `way` than the end `end_k` at

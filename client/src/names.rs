@@ -31,6 +31,7 @@ pub const fn request_name(req: &Request) -> &'static str {
         Request::FactoryReset => "factory-reset",
         Request::FaultsLog { .. } => "faults-log",
         Request::Impedance { .. } => "impedance",
+        Request::SetBus(_) => "bus",
     }
 }
 

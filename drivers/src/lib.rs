@@ -16,6 +16,7 @@
 
 pub mod sim;
 pub mod tick_io;
+pub mod usart_baud;
 
 use embedded_hal::digital::{self, OutputPin};
 use embedded_hal::pwm::{self, SetDutyCycle};

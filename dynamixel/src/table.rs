@@ -286,6 +286,19 @@ pub fn baud_bps(protocol: Protocol, value: i32) -> Option<u32> {
     }
 }
 
+/// The value of `protocol`'s Baud Rate register that selects `bps` exactly, if any (the
+/// inverse of [`baud_bps`]; the AX register's range is 1–254).
+#[must_use]
+pub fn baud_register(protocol: Protocol, bps: u32) -> Option<i32> {
+    match protocol {
+        Protocol::V1 => (1..=254u8).find(|&v| ax_baud_bps(v) == bps).map(i32::from),
+        Protocol::V2 => X_BAUD_BPS
+            .iter()
+            .position(|&b| b == bps)
+            .and_then(|i| i32::try_from(i).ok()),
+    }
+}
+
 #[allow(clippy::too_many_arguments)] // one row of the table, in the e-Manual's column order
 const fn reg(
     address: u16,
@@ -443,3 +456,32 @@ pub static EXTRA: &[Register] = &[
     reg(12, 1, "Calibration State", Field::CalibrationState, R, M, Some(calibration::UNCALIBRATED), 0, 3, "0 none, 1 running, 2 calibrated, 3 failed"),
     reg(13, 1, "Protocol Type", Field::BusProtocol, RW, E, Some(1), 1, 2, "1 = Protocol 1.0, 2 = Protocol 2.0"),
 ];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn baud_register_inverts_baud_bps() {
+        for protocol in [Protocol::V1, Protocol::V2] {
+            let r = protocol
+                .table()
+                .register(match protocol {
+                    Protocol::V1 => Field::BaudRate,
+                    Protocol::V2 => Field::BaudRateX,
+                })
+                .unwrap();
+            for v in r.min..=r.max {
+                let bps = baud_bps(protocol, v).unwrap();
+                assert_eq!(baud_register(protocol, bps), Some(v), "{protocol:?} {v}");
+            }
+        }
+        // 1 Mbit/s is AX 1 and X 3; 250 kbit/s only AX (7), 57 600 only X (1).
+        assert_eq!(baud_register(Protocol::V1, 1_000_000), Some(1));
+        assert_eq!(baud_register(Protocol::V2, 1_000_000), Some(3));
+        assert_eq!(baud_register(Protocol::V1, 250_000), Some(7));
+        assert_eq!(baud_register(Protocol::V2, 250_000), None);
+        assert_eq!(baud_register(Protocol::V1, 57_600), None);
+        assert_eq!(baud_register(Protocol::V2, 57_600), Some(1));
+    }
+}

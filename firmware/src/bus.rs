@@ -6,7 +6,6 @@
 //! idle line is noticed within a tick of [`IDLE_US`]. Nothing here touches the UART: the
 //! bytes come from the receive queue the board's receive path fills, whatever fills it.
 
-use dynamixel::Protocol;
 use service::dynamixel::Bus;
 use service::link::Link;
 
@@ -28,8 +27,63 @@ pub fn clock_us() -> u64 {
     cortex_m::interrupt::free(|_| crate::timing::uptime_us())
 }
 
-/// `link` serving the Dynamixel bus too, as ID `id`, in Protocol 1.0 (the AX-12A's; the
-/// stored protocol setting replaces it once the store holds one).
-pub fn serve<'q, W: embedded_io::Write>(link: Link<'q, W>, id: u8) -> Link<'q, W> {
-    link.with_dynamixel(Bus::new(id, Protocol::V1), clock_us, IDLE_US)
+/// `link` serving the Dynamixel bus too, with the stored bus settings (ID, protocol,
+/// baud, return delay, …), else the AX-12A's factory settings with `factory_id`.
+pub fn serve<'q, W: embedded_io::Write>(link: Link<'q, W>, factory_id: u8) -> Link<'q, W> {
+    let settings = link.service().boot_bus_settings(factory_id);
+    defmt::info!(
+        "Dynamixel bus: ID {=u8}, Protocol {=u8}.0, {=u32} Bd{=str}",
+        settings.id,
+        settings.protocol_version,
+        settings.baud_bps,
+        if link.service().bus_settings_stored() {
+            " (stored)"
+        } else {
+            " (factory settings)"
+        }
+    );
+    let link = link.with_dynamixel(Bus::from_settings(&settings), clock_us, IDLE_US);
+    // The bus refuses a Baud Rate the UART cannot make within 2.5 %.
+    #[cfg(feature = "dynamixel-ttl")]
+    let link = {
+        let mut link = link;
+        link.service_mut().set_uart_rates(|bps| {
+            drivers::usart_baud::divider(crate::board::USART2_CLOCK_HZ, bps).is_ok()
+        });
+        link
+    };
+    link
+}
+
+/// The rate the UART runs at, bit/s (0: the link's own rate, before the bus's is applied).
+#[cfg(feature = "dynamixel-ttl")]
+static UART_BPS: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
+
+/// After each run of the link task: on a Dynamixel TTL bus (`dynamixel-ttl`), the bus's
+/// Baud Rate goes to the UART (`Link::poll` returns only once no status waits, so the
+/// status that changed it has gone out at the old rate). Elsewhere the UART keeps the
+/// link's rate: the emulated USART ignores the rate, and the ST-LINK's virtual COM port
+/// carries our protocol at 921 600 Bd.
+pub fn follow_baud(link: &mut Link<'_, crate::board::SerialTx>) {
+    #[cfg(feature = "dynamixel-ttl")]
+    {
+        use core::sync::atomic::Ordering;
+        let Some(bps) = link.dynamixel().and_then(|b| b.baud_bps()) else {
+            return;
+        };
+        if UART_BPS.load(Ordering::Relaxed) == bps {
+            return;
+        }
+        match drivers::usart_baud::divider(crate::board::USART2_CLOCK_HZ, bps) {
+            Ok(d) => {
+                link.tx().set_divider(d.brr, d.over8);
+                defmt::info!("Dynamixel bus: {=u32} Bd ({} ppm)", bps, d.error_ppm);
+            }
+            // Refused by the bus's checks before; a stored one from another board.
+            Err(e) => defmt::warn!("Dynamixel bus: {=u32} Bd not made: {}", bps, e),
+        }
+        UART_BPS.store(bps, Ordering::Relaxed);
+    }
+    #[cfg(not(feature = "dynamixel-ttl"))]
+    let _ = link;
 }

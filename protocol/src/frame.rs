@@ -25,7 +25,7 @@ mod sealed {
 }
 
 impl Message for Request {
-    const VARIANTS: u32 = 25;
+    const VARIANTS: u32 = 26;
 }
 
 impl Message for Reply {

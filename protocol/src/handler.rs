@@ -178,6 +178,15 @@ pub trait Device {
     fn faults_log(&mut self, _index: u8) -> Result<(u8, Option<LoggedFault>), ErrorCode> {
         Err(ErrorCode::Storage)
     }
+
+    /// [`Request::SetBus`]: change the Dynamixel bus settings.
+    ///
+    /// # Errors
+    /// [`ErrorCode::NotAllowed`] by default: a device without a bus.
+    fn set_bus(&mut self, change: &crate::BusChange) -> Result<(), ErrorCode> {
+        let _ = change;
+        Err(ErrorCode::NotAllowed)
+    }
 }
 
 /// Protocol errors since start, per kind (saturating counters).
@@ -418,6 +427,7 @@ impl Handler {
                 damping_unms_per_rad,
                 torque_unm,
             )),
+            Request::SetBus(_) => crate::bus::dispatch(req, dev),
         }
     }
 

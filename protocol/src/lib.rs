@@ -93,12 +93,14 @@
     clippy::panic
 )]
 
+mod bus;
 mod frame;
 mod handler;
 mod msg;
 mod replay;
 mod sensors;
 
+pub use bus::BusChange;
 pub use frame::{
     decode_payload, encode, encode_raw, encode_telemetry, encode_to_vec, telemetry_frame, Decoder,
     EncodeError, Frame, FrameBuf, FrameError, Message, TelemetryFrameBuf, CRC,

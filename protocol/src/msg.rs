@@ -89,7 +89,8 @@ pub enum Request {
     DisarmHeartbeat,
     /// Reply: [`Reply::Limits`], the live limits and the position window in force.
     GetLimits,
-    /// Reply: [`Reply::Sensors`], the raw readings of the last control tick (any state).
+    /// Reply: [`Reply::Sensors`], the raw readings of the last control tick (any state);
+    /// [`ErrorCode::Busy`] before the first tick (no readings yet: ask again).
     GetSensors,
     /// Drive the motor open-loop at `duty_permille` for `duration_ms`, to check the motor's
     /// direction and the sensors before the loop is closed. Only while disabled (else
@@ -134,6 +135,13 @@ pub enum Request {
         /// Feed-forward torque τ_ff, µN·m, |·| ≤ [`IMPEDANCE_TORQUE_MAX_UNM`].
         torque_unm: i32,
     },
+    /// Change the Dynamixel bus settings (protocol, ID, line rate; `vsa bus`). They take
+    /// effect after the reply and are stored (once the motor is off: programming the flash
+    /// stalls the control loop). Reply: [`Reply::Ok`]; [`ErrorCode::OutOfRange`] for
+    /// settings the device's control table or UART cannot take, [`ErrorCode::NotAllowed`]
+    /// on a device without a bus, [`ErrorCode::Storage`] if they could not be stored (in
+    /// force until the next boot all the same).
+    SetBus(crate::bus::BusChange),
 }
 
 /// PID gains, each in 10⁻³ of the controller's unit (duty ‰ out, link angle in rad), so
@@ -276,6 +284,7 @@ impl Request {
                     && damping_unms_per_rad <= IMPEDANCE_DAMPING_MAX_UNMS_PER_RAD
                     && torque_unm.unsigned_abs() <= IMPEDANCE_TORQUE_MAX_UNM
             }
+            Request::SetBus(change) => change.is_valid(),
         };
         if ok {
             Ok(())

@@ -64,6 +64,17 @@ fn in_range(r: &Request) -> bool {
                 && damping_unms_per_rad <= 100_000_000
                 && i64::from(torque_unm).abs() <= 100_000_000
         }
+        // Protocol 1 or 2, a rate above 0, any ID (the device's check); at least one.
+        Request::SetBus(c) => {
+            let given = [
+                c.protocol_version.is_some(),
+                c.id.is_some(),
+                c.baud_bps.is_some(),
+            ];
+            given.contains(&true)
+                && c.protocol_version.is_none_or(|v| v == 1 || v == 2)
+                && c.baud_bps.is_none_or(|b| b >= 1)
+        }
         Request::Ping
         | Request::GetStatus
         | Request::Enable
@@ -442,7 +453,7 @@ proptest! {
 #[test]
 fn frames_are_bounded_and_message_counts_match() {
     println!("fuzz cases per property: {}", config(FUZZ_CASES).cases);
-    assert_eq!(Request::VARIANTS, 25);
+    assert_eq!(Request::VARIANTS, 26);
     assert_eq!(Reply::VARIANTS, 9);
     const { assert!(MAX_FRAME <= 64, "a frame fits a 64-byte DMA/queue slot") };
 }

@@ -175,6 +175,11 @@ fn largest_requests() -> Vec<Request> {
             damping_unms_per_rad: u32::MAX,
             torque_unm: i32::MIN,
         },
+        Request::SetBus(protocol::BusChange {
+            protocol_version: Some(u8::MAX),
+            id: Some(u8::MAX),
+            baud_bps: Some(u32::MAX),
+        }),
     ]
 }
 

@@ -24,6 +24,7 @@ use model::supervisor::FaultCode as ModelFaultCode;
 use model::{Length, Stiffness};
 use protocol::{Device as _, MOVE_DURATION_MAX_MS};
 use rtic_core::Mutex;
+use store::BusSettings;
 
 /// One AX-12A position count, nrad: 300° / 1024 = 5π/3072 rad.
 pub const AX_COUNT_NRAD: i64 = 5_113_273;
@@ -260,7 +261,7 @@ impl Bus {
     }
 
     /// Whether an EEPROM-area setting (ID, baud, protocol, limits, …) changed since the
-    /// last call: the hook for the store that persists them.
+    /// last call (the link then hands them to the store, `crate::bus_settings`).
     pub fn settings_changed(&mut self) -> bool {
         core::mem::take(&mut self.regs.eeprom_dirty)
     }
@@ -269,6 +270,69 @@ impl Bus {
     #[must_use]
     pub fn setting(&self, field: Field) -> i32 {
         self.regs.store.get(field)
+    }
+
+    /// A device with the stored bus `settings` (ID, protocol, the protocol's Baud Rate,
+    /// return delay, status return level, angle limits, the other EEPROM-area limits);
+    /// every other register at its table default.
+    #[must_use]
+    pub fn from_settings(settings: &BusSettings) -> Self {
+        let protocol =
+            Protocol::from_number(i32::from(settings.protocol_version)).unwrap_or(Protocol::V1);
+        let mut bus = Bus::new(settings.id, protocol);
+        bus.apply(settings);
+        bus.regs.eeprom_dirty = false;
+        bus
+    }
+
+    /// The bus settings in force, as the store keeps them (the baud rate is the active
+    /// protocol's Baud Rate register's).
+    #[must_use]
+    pub fn settings(&self) -> BusSettings {
+        let byte = |f| u8::try_from(self.regs.store.get(f)).unwrap_or(u8::MAX);
+        let word = |f| u16::try_from(self.regs.store.get(f)).unwrap_or(u16::MAX);
+        BusSettings {
+            id: self.id(),
+            baud_bps: self.baud_bps().unwrap_or(0),
+            protocol_version: u8::try_from(self.protocol().number()).unwrap_or(1),
+            return_delay_2us: byte(Field::ReturnDelayTime),
+            status_return_level: byte(Field::StatusReturnLevel),
+            cw_angle_limit: word(Field::CwAngleLimit),
+            ccw_angle_limit: word(Field::CcwAngleLimit),
+            limits: store::BusLimits::from_fields(|f| self.regs.store.get(f)),
+        }
+    }
+
+    /// Makes `settings` the ones in force (our protocol's `SetBus`, or the store at boot):
+    /// the registers take them (the baud rate goes to the register of `settings`'
+    /// protocol, where it selects one), and a change of protocol drops any partial
+    /// packet. Lock and a registered write survive unless the protocol changes.
+    pub fn apply(&mut self, settings: &BusSettings) {
+        let protocol =
+            Protocol::from_number(i32::from(settings.protocol_version)).unwrap_or(Protocol::V1);
+        let store = &mut self.regs.store;
+        store.set(Field::Id, i32::from(settings.id));
+        if let Some(v) = dynamixel::table::baud_register(protocol, settings.baud_bps) {
+            let field = match protocol {
+                Protocol::V1 => Field::BaudRate,
+                Protocol::V2 => Field::BaudRateX,
+            };
+            store.set(field, v);
+        }
+        store.set(Field::ReturnDelayTime, i32::from(settings.return_delay_2us));
+        store.set(
+            Field::StatusReturnLevel,
+            i32::from(settings.status_return_level),
+        );
+        store.set(Field::CwAngleLimit, i32::from(settings.cw_angle_limit));
+        store.set(Field::CcwAngleLimit, i32::from(settings.ccw_angle_limit));
+        for (field, value) in settings.limits.fields() {
+            store.set(field, value);
+        }
+        if protocol != self.protocol() {
+            self.set_protocol(protocol);
+        }
+        self.regs.eeprom_dirty = true;
     }
 }
 
@@ -435,6 +499,18 @@ impl<M: Mutex<T = Actuator>> Backend for ServoBackend<'_, '_, M> {
                 protocol::Request::SetLimits(limits)
                     .validate()
                     .map_err(|_| Refusal::Range)
+            }
+            Field::BaudRate | Field::BaudRateX => {
+                let protocol = if field == Field::BaudRate {
+                    Protocol::V1
+                } else {
+                    Protocol::V2
+                };
+                // The rate the register selects must be one the board's UART makes.
+                dynamixel::table::baud_bps(protocol, value)
+                    .filter(|&bps| self.dev.service.uart_makes(bps))
+                    .map(|_| ())
+                    .ok_or(Refusal::Range)
             }
             Field::ClutchLength => self.prepare(clutch_length(value)).map(|_| ()),
             Field::Stiffness => self.prepare(clutch_stiffness(value)).map(|_| ()),

@@ -35,6 +35,7 @@ use protocol::{
 };
 use rtic_core::Mutex;
 
+mod bus_settings;
 pub mod correction;
 pub mod dynamixel;
 mod impedance;
@@ -641,6 +642,10 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
         impedance::apply(self, target, k, d, torque)
     }
 
+    fn set_bus(&mut self, change: &protocol::BusChange) -> Result<(), ErrorCode> {
+        bus_settings::set(self, change)
+    }
+
     fn hold(&mut self) -> Result<(), ErrorCode> {
         self.actuator.lock(|a| {
             if a.servo.state() == ServoState::Faulted {
@@ -712,7 +717,7 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
     }
 
     fn raw_sensors(&mut self) -> Result<protocol::RawSensors, ErrorCode> {
-        Ok(self.actuator.lock(|a| a.open_loop.last()))
+        self.actuator.lock(|a| a.open_loop.last())
     }
 
     fn nudge(&mut self, duty_permille: i16, duration_ms: u16) -> Result<(), ErrorCode> {

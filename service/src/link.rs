@@ -124,6 +124,7 @@ impl<'q, W: Write> Link<'q, W> {
     /// emulated USART).
     #[must_use]
     pub fn with_dynamixel(mut self, bus: Bus, clock: fn() -> u64, idle_us: u64) -> Self {
+        self.service.bus_started(bus.settings());
         self.dynamixel = Some(DynamixelLine {
             bus,
             splitter: Splitter::new(),
@@ -141,6 +142,16 @@ impl<'q, W: Write> Link<'q, W> {
     /// The Dynamixel bus device, if served (its settings: ID, baud, protocol).
     pub fn dynamixel(&mut self) -> Option<&mut Bus> {
         self.dynamixel.as_mut().map(|d| &mut d.bus)
+    }
+
+    /// The command service (its stored settings: [`Service::boot_bus_settings`]).
+    pub fn service(&self) -> &Service {
+        &self.service
+    }
+
+    /// The command service, to configure (e.g. [`Service::set_uart_rates`]).
+    pub fn service_mut(&mut self) -> &mut Service {
+        &mut self.service
     }
 
     /// What the Dynamixel side sent and dropped.
@@ -200,6 +211,8 @@ impl<'q, W: Write> Link<'q, W> {
                     Err(_) => self.failures.encode = self.failures.encode.saturating_add(1),
                 }
             } else {
+                // Nothing waits: bus settings changed on either side go to the store now.
+                self.service.store_bus_settings(actuator);
                 return;
             }
         }
@@ -209,6 +222,13 @@ impl<'q, W: Write> Link<'q, W> {
         let mut device = self.service.device(actuator);
         if let Some(reply) = self.handler.feed(&mut self.decoder, byte, &mut device) {
             self.send(&reply);
+            // A `SetBus` takes effect once its reply is out.
+            if let Some(settings) = self.service.take_bus_request() {
+                if let Some(d) = self.dynamixel.as_mut() {
+                    d.bus.apply(&settings);
+                    let _ = d.bus.settings_changed();
+                }
+            }
         }
     }
 
@@ -295,6 +315,10 @@ impl DynamixelLine {
                 None if out.after == After::Reboot => self.bus.restart(),
                 None => {}
             }
+        }
+        // An EEPROM-area write: the service stores it (see `crate::bus_settings`).
+        if self.bus.settings_changed() {
+            service.bus_in_force(self.bus.settings());
         }
     }
 }

@@ -19,6 +19,8 @@ pub struct OpenLoop {
     ticks_left: u16,
     /// The readings of the last tick.
     last: RawSensors,
+    /// Whether a tick has recorded `last` (before the first one there is no reading).
+    ticked: bool,
 }
 
 impl OpenLoop {
@@ -73,6 +75,7 @@ impl OpenLoop {
             current_adc: input.current_adc,
             nudge_duty_permille: nudge,
         };
+        self.ticked = true;
         if nudge == 0 {
             out.bridge
         } else {
@@ -81,9 +84,16 @@ impl OpenLoop {
     }
 
     /// The readings of the last tick.
-    #[must_use]
-    pub const fn last(&self) -> RawSensors {
-        self.last
+    ///
+    /// # Errors
+    /// [`ErrorCode::Busy`] before the first tick: there is no reading yet (a link that
+    /// comes up before the control tick must not pass off zeros as one).
+    pub const fn last(&self) -> Result<RawSensors, ErrorCode> {
+        if self.ticked {
+            Ok(self.last)
+        } else {
+            Err(ErrorCode::Busy)
+        }
     }
 }
 
@@ -123,9 +133,20 @@ mod tests {
         }
         let d = BridgeDemand::Drive(-80);
         assert_eq!(applied, [d, d, d, BridgeDemand::Off, BridgeDemand::Off]);
-        assert_eq!(o.last().nudge_duty_permille, 0);
-        assert_eq!(o.last().tick, 5);
-        assert_eq!(o.last().gear_pot, Some(512));
+        let last = o.last().unwrap();
+        assert_eq!(last.nudge_duty_permille, 0);
+        assert_eq!(last.tick, 5);
+        assert_eq!(last.gear_pot, Some(512));
+    }
+
+    #[test]
+    fn no_reading_before_the_first_tick() {
+        let mut s = servo();
+        let mut o = OpenLoop::default();
+        assert_eq!(o.last(), Err(ErrorCode::Busy));
+        let out = s.tick(&AT_REST);
+        o.demand(&AT_REST, &out);
+        assert_eq!(o.last().map(|r| r.tick), Ok(1));
     }
 
     #[test]
@@ -135,7 +156,7 @@ mod tests {
         o.start(s.state(), 50, 100).unwrap();
         let out = s.tick(&AT_REST);
         assert_eq!(o.demand(&AT_REST, &out), BridgeDemand::Drive(50));
-        assert_eq!(o.last().nudge_duty_permille, 50);
+        assert_eq!(o.last().unwrap().nudge_duty_permille, 50);
         s.enable().unwrap();
         let out = s.tick(&AT_REST);
         assert_eq!(o.demand(&AT_REST, &out), out.bridge);

@@ -146,8 +146,9 @@ fn stored_config(config: &Config, supervision: &SupervisorConfig) -> store::Conf
 pub struct Settings {
     storage: Option<&'static mut (dyn Storage + Send)>,
     defaults: (Config, SupervisorConfig),
-    stored: RecordSet,
+    pub(crate) stored: RecordSet,
     logged: Option<FaultRecord>,
+    pub(crate) bus: crate::bus_settings::BusState,
 }
 
 impl core::fmt::Debug for Settings {
@@ -173,6 +174,7 @@ impl Settings {
                 bus: None,
             },
             logged: None,
+            bus: crate::bus_settings::BusState::new(),
         }
     }
 }

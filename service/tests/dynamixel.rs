@@ -220,3 +220,43 @@ fn extra_registers_reconfigure_the_controller_like_our_protocol() {
     );
     assert!(!b.bus.settings_changed());
 }
+
+#[test]
+fn bus_settings_round_trip_through_the_bus_device() {
+    use store::{BusLimits, BusSettings, Record};
+    let ax = BusSettings::ax12a_default();
+    let cases = [
+        ax,
+        BusSettings {
+            id: 253,
+            baud_bps: 250_000,
+            return_delay_2us: 0,
+            status_return_level: 1,
+            cw_angle_limit: 100,
+            ccw_angle_limit: 900,
+            ..ax
+        },
+        BusSettings {
+            id: 7,
+            baud_bps: 57_600,
+            protocol_version: 2,
+            limits: BusLimits {
+                max_torque: 512,
+                temperature_limit: 60,
+                velocity_limit: 100,
+                min_position_limit: 1000,
+                max_position_limit: 3000,
+                ..ax.limits
+            },
+            ..ax
+        },
+    ];
+    for s in cases {
+        assert_eq!(s.check(), Ok(()), "{s:?}");
+        let bus = Bus::from_settings(&s);
+        assert_eq!(bus.settings(), s);
+        assert_eq!(bus.id(), s.id);
+        assert_eq!(bus.baud_bps(), Some(s.baud_bps));
+        assert_eq!(bus.protocol().number(), i32::from(s.protocol_version));
+    }
+}

@@ -84,6 +84,18 @@ fn a_nudge_turns_the_motor_its_way_and_stops_by_itself() {
     assert!((pot(&b.sensors()) - pot(&still)).abs() <= 1);
 }
 
+/// The link comes up before the control tick (the firmware enables its UART, then starts
+/// SysTick): a reading asked for then does not exist, and must not come back as zeros.
+#[test]
+fn no_reading_before_the_first_tick() {
+    let mut b = Bench::new();
+    assert_eq!(b.ask(Request::GetSensors), Reply::Error(ErrorCode::Busy));
+    b.run(1);
+    let first = b.sensors();
+    assert_eq!(first.tick, 1);
+    assert!(first.gear_pot.is_some(), "{first:?}");
+}
+
 #[test]
 fn a_nudge_is_bounded_and_only_for_a_disabled_motor() {
     let mut b = Bench::new();

@@ -284,3 +284,197 @@ fn without_a_store_the_requests_say_so() {
         assert_eq!(reply, Reply::Error(ErrorCode::Storage), "{req:?}");
     }
 }
+
+/// The link task with the Dynamixel bus over a board booted from `flash` (factory ID 1),
+/// and a way to feed it bytes: what it sent comes back.
+mod bus_link {
+    use super::*;
+    use dynamixel::instruction as ins;
+    use dynamixel::{v1, v2};
+    use heapless::spsc::{Producer, Queue};
+    use service::dynamixel::Bus;
+    use service::link::{Link, Sample, RX_QUEUE, TELEMETRY_QUEUE};
+
+    /// Every write the link made.
+    #[derive(Default)]
+    pub struct Wire(pub Vec<Vec<u8>>);
+
+    impl embedded_io::ErrorType for Wire {
+        type Error = embedded_io::ErrorKind;
+    }
+
+    impl embedded_io::Write for Wire {
+        fn write(&mut self, buf: &[u8]) -> Result<usize, Self::Error> {
+            self.0.push(buf.to_vec());
+            Ok(buf.len())
+        }
+        fn flush(&mut self) -> Result<(), Self::Error> {
+            Ok(())
+        }
+    }
+
+    /// A clock that runs 1 ms per reading: every status is due at once, every line idle.
+    fn clock() -> u64 {
+        use std::sync::atomic::{AtomicU64, Ordering};
+        static NOW: AtomicU64 = AtomicU64::new(0);
+        NOW.fetch_add(1_000, Ordering::Relaxed)
+    }
+
+    pub struct BusBoard {
+        pub link: Link<'static, Wire>,
+        pub rx: Producer<'static, u8>,
+        pub actuator: Cell,
+        seq: u16,
+    }
+
+    impl BusBoard {
+        pub fn boot(flash: &SharedFlash) -> BusBoard {
+            let b = Board::boot(flash);
+            let rxq = Box::leak(Box::new(Queue::<u8, RX_QUEUE>::new()));
+            let tq = Box::leak(Box::new(Queue::<Sample, TELEMETRY_QUEUE>::new()));
+            let (rx, rx_out) = rxq.split();
+            let (_, t_out) = tq.split();
+            let bus = Bus::from_settings(&b.service.boot_bus_settings(1));
+            let link =
+                Link::new(b.service, rx_out, t_out, Wire::default()).with_dynamixel(bus, clock, 0);
+            BusBoard {
+                link,
+                rx,
+                actuator: b.actuator,
+                seq: 0,
+            }
+        }
+
+        /// `bytes` on the line; what the board sent meanwhile.
+        pub fn line(&mut self, bytes: &[u8]) -> Vec<Vec<u8>> {
+            let before = self.link.tx().0.len();
+            for &b in bytes {
+                self.rx.enqueue(b).unwrap();
+            }
+            self.link.poll(&mut self.actuator);
+            // Once more: the idle line after the last byte.
+            self.link.poll(&mut self.actuator);
+            self.link.tx().0[before..].to_vec()
+        }
+
+        /// A Protocol 1.0 instruction; the status's error byte, if answered.
+        pub fn v1(&mut self, id: u8, code: u8, params: &[u8]) -> Option<u8> {
+            let mut buf = [0u8; v1::MAX_PACKET];
+            let n = v1::encode(id, code, params, &mut buf).unwrap();
+            let sent = self.line(&buf[..n]);
+            sent.iter()
+                .find(|s| s.starts_with(&[0xFF, 0xFF]))
+                .map(|s| s[4])
+        }
+
+        /// A Protocol 2.0 PING: the model number it answers with, if answered.
+        pub fn v2_ping(&mut self, id: u8) -> Option<u16> {
+            let mut buf = [0u8; 32];
+            let n = v2::encode(id, ins::PING, &[], &mut buf).unwrap();
+            let sent = self.line(&buf[..n]);
+            sent.iter()
+                .find(|s| s.starts_with(&[0xFF, 0xFF, 0xFD, 0x00, id]) && s.len() >= 14)
+                .map(|s| u16::from_le_bytes([s[9], s[10]]))
+        }
+
+        /// One of our requests; its reply.
+        pub fn ask(&mut self, req: Request) -> Reply {
+            self.seq += 1;
+            let mut buf = [0u8; protocol::MAX_FRAME];
+            let n = protocol::encode(&Frame::new(self.seq, req), &mut buf).unwrap();
+            let sent = self.line(&buf[..n]);
+            let mut d = protocol::Decoder::<Reply>::new();
+            sent.iter()
+                .flatten()
+                .find_map(|b| d.feed(*b).ok().flatten())
+                .map(|f| f.body)
+                .expect("a reply")
+        }
+    }
+}
+
+#[test]
+fn bus_settings_written_on_the_bus_or_with_set_bus_survive_a_power_cycle() {
+    use bus_link::BusBoard;
+    use dynamixel::instruction as ins;
+    let flash = SharedFlash::default();
+    let stored = |flash: &SharedFlash| Board::boot(flash).service.boot_bus_settings(1);
+    let mut b = BusBoard::boot(&flash);
+    assert_eq!(stored(&flash), BusSettings::ax12a_default());
+
+    // Torque on: an EEPROM write (Return Delay Time, address 5) is in force at once and
+    // stored only once the motor is off.
+    assert_eq!(b.ask(Request::Enable), Reply::Ok);
+    assert_eq!(b.v1(1, ins::WRITE, &[5, 10]), Some(0));
+    assert!(b.link.service().bus_unsaved());
+    assert_eq!(stored(&flash).return_delay_2us, 250, "not while enabled");
+    assert_eq!(b.ask(Request::Disable), Reply::Ok);
+    assert_eq!(stored(&flash).return_delay_2us, 10);
+
+    // A new ID on the bus: answered at it, stored.
+    assert_eq!(b.v1(1, ins::WRITE, &[3, 7]), Some(0));
+    assert_eq!(b.v1(7, ins::PING, &[]), Some(0));
+    assert_eq!(b.v1(1, ins::PING, &[]), None);
+    assert_eq!(stored(&flash).id, 7);
+    // The rest of the EEPROM area too: Max Torque (14, two bytes).
+    assert_eq!(b.v1(7, ins::WRITE, &[14, 0x00, 0x02]), Some(0));
+    assert_eq!(stored(&flash).limits.max_torque, 512);
+
+    // Protocol 2.0 from our protocol: the bus speaks it after the reply; stored.
+    let to_v2 = Request::SetBus(protocol::BusChange {
+        protocol_version: Some(2),
+        ..Default::default()
+    });
+    assert_eq!(b.ask(to_v2), Reply::Ok);
+    assert_eq!(b.v2_ping(7), Some(1060));
+    // A rate Protocol 2.0's Baud Rate register cannot select: refused, nothing changed.
+    let odd_rate = Request::SetBus(protocol::BusChange {
+        baud_bps: Some(400_000),
+        ..Default::default()
+    });
+    assert_eq!(b.ask(odd_rate), Reply::Error(ErrorCode::OutOfRange));
+    // ID 253 is an AX-12A ID, not an X-series one.
+    let x_id = Request::SetBus(protocol::BusChange {
+        id: Some(253),
+        ..Default::default()
+    });
+    assert_eq!(b.ask(x_id), Reply::Error(ErrorCode::OutOfRange));
+
+    // Power cycle on the same flash: ID 7, Protocol 2.0, return delay 10.
+    let want = BusSettings {
+        id: 7,
+        protocol_version: 2,
+        return_delay_2us: 10,
+        limits: store::BusLimits {
+            max_torque: 512,
+            ..BusSettings::ax12a_default().limits
+        },
+        ..BusSettings::ax12a_default()
+    };
+    assert_eq!(stored(&flash), want);
+    let mut again = BusBoard::boot(&flash);
+    assert_eq!(again.v2_ping(7), Some(1060));
+    // Back to 1.0 from Protocol 2.0 itself (Protocol Type, address 13), then Lock.
+    let mut buf = [0u8; 32];
+    let n = dynamixel::v2::encode(7, ins::WRITE, &[13, 0, 1], &mut buf).unwrap();
+    again.line(&buf[..n]);
+    assert_eq!(again.v1(7, ins::PING, &[]), Some(0));
+    assert_eq!(again.v1(7, ins::WRITE, &[47, 1]), Some(0), "Lock = 1");
+    let range = dynamixel::v1::error::RANGE;
+    assert_eq!(
+        again.v1(7, ins::WRITE, &[3, 9]),
+        Some(range),
+        "ID while locked"
+    );
+    assert_eq!(again.v1(7, ins::WRITE, &[47, 0]), Some(range), "unlock");
+    assert_eq!(stored(&flash).id, 7);
+    assert_eq!(stored(&flash).protocol_version, 1);
+    // The power cycle ends the lock.
+    let mut third = BusBoard::boot(&flash);
+    assert_eq!(
+        third.v1(7, ins::WRITE, &[3, 9]),
+        Some(0),
+        "unlocked after a power cycle"
+    );
+    assert_eq!(third.v1(9, ins::PING, &[]), Some(0));
+}

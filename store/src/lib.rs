@@ -59,7 +59,7 @@
 //! |---|---|---|---|
 //! | [`Config`] | 1 | clutch: length µm or stiffness mN·m/rad; link inertia kg·mm²; gains (10⁻³ of the controller's units) or automatic; [`protocol::Limits`] (torque margin ‰, current mA, motor torque µN·m, duty ‰, position window µrad); command timeout ms | [`CONFIG_MAX`] = 72 B |
 //! | [`Calibration`] | 1 | motor polarity, encoder and pot directions ±1; current offset ADC counts; pot offset counts; resistance mΩ; back-EMF µV·s/rad; gear friction µN·m; link inertia kg·mm²; stiffness mN·m/rad or unresolved; clutch length µm or unresolved; stiffness uncertainty ‰ | [`CALIBRATION_MAX`] = 45 B |
-//! | [`BusSettings`] | 1 | Dynamixel ID; baud bit/s; protocol 1 or 2; return delay × 2 µs; status return level 0–2; CW and CCW angle limits (AX units, 0–1023); ranges and defaults from `dynamixel::table` | [`BUS_MAX`] = 16 B |
+//! | [`BusSettings`] | 2 | Dynamixel ID; baud bit/s; protocol 1 or 2; return delay × 2 µs; status return level 0–2; CW and CCW angle limits (AX units, 0–1023); the other EEPROM-area registers ([`BusLimits`]: max torque, temperature and voltage limits, alarm LED, shutdown, X velocity and position limits) in their registers' units; ranges and defaults from `dynamixel::table` | [`BUS_MAX`] = 33 B |
 //! | [`FaultEntry`] | 1 | number since the last factory reset; [`protocol::FaultRecord`] (code, value, uptime ms) | [`FAULT_MAX`] = 17 B |
 //!
 //! A record of another version goes through [`Record::migrate`]: none exists yet, so it is
@@ -154,7 +154,9 @@ mod store;
 
 pub use fault_log::{FaultLog, FAULT_LOG_LEN};
 pub use ram_flash::{PowerCut, RamFlash, RamFlashError};
-pub use records::{BusSettings, Calibration, Clutch, Config, FaultEntry, Record, Rejection};
+pub use records::{
+    BusLimits, BusSettings, Calibration, Clutch, Config, FaultEntry, Record, Rejection,
+};
 pub use store::{
     Boot, FlashFault, Outcome, RangeChecks, RecordSet, Report, Store, StoreError, Validator,
     BUS_MAX, CALIBRATION_MAX, CONFIG_MAX, FAULT_MAX, SET_ITEM_MAX,

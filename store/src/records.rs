@@ -357,6 +357,99 @@ pub struct BusSettings {
     /// Counter-clockwise angle limit, AX position units, ≥ the clockwise one (both 0:
     /// wheel mode).
     pub ccw_angle_limit: u16,
+    /// The rest of the EEPROM area, in the registers' own units (AX table, and the X
+    /// table for the position and velocity limits).
+    pub limits: BusLimits,
+}
+
+/// The EEPROM-area registers that limit and alarm, stored with the bus settings. Each is
+/// checked against its register's range (the AX-12A's where both tables have it: the
+/// register is one whichever protocol wrote it).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BusLimits {
+    /// Max Torque (AX 14), 0–1023 (0.1 % of the torque capacity).
+    pub max_torque: u16,
+    /// Temperature Limit (AX 11 / X 31), °C.
+    pub temperature_limit: u8,
+    /// Min Voltage Limit (AX 12 / X 34), 0.1 V.
+    pub min_voltage_limit: u8,
+    /// Max Voltage Limit (AX 13 / X 32), 0.1 V.
+    pub max_voltage_limit: u8,
+    /// Alarm LED (AX 17), error-bit mask.
+    pub alarm_led: u8,
+    /// Shutdown (AX 18 / X 63), error-bit mask.
+    pub shutdown: u8,
+    /// Velocity Limit (X 44), 0.229 rpm.
+    pub velocity_limit: u16,
+    /// Min Position Limit (X 52), X position units (4096 per turn).
+    pub min_position_limit: u16,
+    /// Max Position Limit (X 48), X position units.
+    pub max_position_limit: u16,
+}
+
+impl BusLimits {
+    /// Each register's field, and its value here (the one list the defaults, the check
+    /// and the bus device's conversions go through).
+    #[must_use]
+    pub fn fields(&self) -> [(Field, i32); 9] {
+        [
+            (Field::MaxTorque, i32::from(self.max_torque)),
+            (Field::TemperatureLimit, i32::from(self.temperature_limit)),
+            (Field::MinVoltageLimit, i32::from(self.min_voltage_limit)),
+            (Field::MaxVoltageLimit, i32::from(self.max_voltage_limit)),
+            (Field::AlarmLed, i32::from(self.alarm_led)),
+            (Field::Shutdown, i32::from(self.shutdown)),
+            (Field::VelocityLimit, i32::from(self.velocity_limit)),
+            (Field::MinPositionLimit, i32::from(self.min_position_limit)),
+            (Field::MaxPositionLimit, i32::from(self.max_position_limit)),
+        ]
+    }
+
+    /// The limits from `value`, each field's value (out-of-range values saturate, and
+    /// then fail [`Record::check`]).
+    #[must_use]
+    pub fn from_fields(value: impl Fn(Field) -> i32) -> BusLimits {
+        let byte = |f| u8::try_from(value(f)).unwrap_or(u8::MAX);
+        let word = |f| u16::try_from(value(f)).unwrap_or(u16::MAX);
+        BusLimits {
+            max_torque: word(Field::MaxTorque),
+            temperature_limit: byte(Field::TemperatureLimit),
+            min_voltage_limit: byte(Field::MinVoltageLimit),
+            max_voltage_limit: byte(Field::MaxVoltageLimit),
+            alarm_led: byte(Field::AlarmLed),
+            shutdown: byte(Field::Shutdown),
+            velocity_limit: word(Field::VelocityLimit),
+            min_position_limit: word(Field::MinPositionLimit),
+            max_position_limit: word(Field::MaxPositionLimit),
+        }
+    }
+
+    /// The register of `field`: the AX-12A table's, else the X series'.
+    fn register(field: Field) -> Option<dynamixel::Register> {
+        Protocol::V1
+            .table()
+            .register(field)
+            .or_else(|| Protocol::V2.table().register(field))
+    }
+
+    /// The tables' defaults.
+    #[must_use]
+    pub fn table_default() -> BusLimits {
+        BusLimits::from_fields(|f| Self::register(f).and_then(|r| r.default).unwrap_or(0))
+    }
+
+    fn check(&self) -> Result<(), &'static str> {
+        for (field, value) in self.fields() {
+            if !Self::register(field).is_some_and(|r| (r.min..=r.max).contains(&value)) {
+                return Err("a limit register outside its control table's range");
+            }
+        }
+        if self.min_position_limit > self.max_position_limit {
+            return Err("min position limit above the max position limit");
+        }
+        Ok(())
+    }
 }
 
 /// The register of `field` in `protocol`'s table, else in the AX table (the angle limits
@@ -392,13 +485,14 @@ impl BusSettings {
             status_return_level: byte(Field::StatusReturnLevel),
             cw_angle_limit: u16::try_from(default(Field::CwAngleLimit)).unwrap_or(0),
             ccw_angle_limit: u16::try_from(default(Field::CcwAngleLimit)).unwrap_or(0),
+            limits: BusLimits::table_default(),
         }
     }
 }
 
 impl Record for BusSettings {
     const NAME: &'static str = "bus";
-    const VERSION: u8 = 1;
+    const VERSION: u8 = 2;
 
     /// The control table's ranges for the protocol. Whether the UART makes the baud rate
     /// is the device's check.
@@ -445,7 +539,7 @@ impl Record for BusSettings {
         {
             return Err("angle limits above 1023 or clockwise above counter-clockwise");
         }
-        Ok(())
+        self.limits.check()
     }
 }
 

@@ -29,8 +29,9 @@ pub const CONFIG_MAX: usize = 1 + 6 + 5 + 31 + 24 + 5;
 /// (i16 varint 3) + 4 × u32 5 + 2 × `Option<u32>` 6 + u16 3, then (version 2) encoder
 /// counts (u16 3) + 2 gains (u32 5) + the pot error table (`Option<[u16; 16]>` 1 + 48).
 pub const CALIBRATION_MAX: usize = 1 + 3 + 6 + 20 + 12 + 3 + 3 + 10 + 49;
-/// Largest stored bus record, bytes: version 1 + ID 1 + baud 5 + 3 × u8 + 2 × u16 3.
-pub const BUS_MAX: usize = 1 + 1 + 5 + 3 + 6;
+/// Largest stored bus record, bytes: version 1 + ID 1 + baud 5 + 3 × u8 + 2 × u16 3, and
+/// the limits: 5 × u8 + 4 × u16 3.
+pub const BUS_MAX: usize = 1 + 1 + 5 + 3 + 6 + 5 + 12;
 /// Largest stored fault entry, bytes: version 1 + seq 5 + code 1 + value 5 + tick 5.
 pub const FAULT_MAX: usize = 1 + 5 + 1 + 5 + 5;
 /// Largest set item, bytes: format 1 + generation 5 + fault floor 5 + each record with its
@@ -556,7 +557,7 @@ fn decode_set(bytes: &[u8], checks: &impl Validator, boot: &mut Boot) -> Option<
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{Clutch, RamFlash};
+    use crate::{BusLimits, Clutch, RamFlash};
     use protocol::CLUTCH_MAX_UM as CLUTCH_MAX;
     use protocol::{FaultCode, Gains, Limits};
 
@@ -792,8 +793,40 @@ mod tests {
             status_return_level: 2,
             cw_angle_limit: 0,
             ccw_angle_limit: 1023,
+            // The e-Manual's defaults (AX-12A; XL430 for the X-only registers).
+            limits: BusLimits {
+                max_torque: 1023,
+                temperature_limit: 70,
+                min_voltage_limit: 60,
+                max_voltage_limit: 140,
+                alarm_led: 36,
+                shutdown: 36,
+                velocity_limit: 265,
+                min_position_limit: 0,
+                max_position_limit: 4095,
+            },
         };
         assert_eq!(ax, want);
+        for bad in [
+            BusLimits {
+                max_torque: 1024,
+                ..want.limits
+            },
+            BusLimits {
+                min_voltage_limit: 49,
+                ..want.limits
+            },
+            BusLimits {
+                min_position_limit: 3000,
+                max_position_limit: 2000,
+                ..want.limits
+            },
+        ] {
+            assert!(
+                BusSettings { limits: bad, ..ax }.check().is_err(),
+                "{bad:?}"
+            );
+        }
         let x = BusSettings {
             protocol_version: 2,
             ..ax
@@ -892,6 +925,17 @@ mod tests {
             status_return_level: u8::MAX,
             cw_angle_limit: u16::MAX,
             ccw_angle_limit: u16::MAX,
+            limits: BusLimits {
+                max_torque: u16::MAX,
+                temperature_limit: u8::MAX,
+                min_voltage_limit: u8::MAX,
+                max_voltage_limit: u8::MAX,
+                alarm_led: u8::MAX,
+                shutdown: u8::MAX,
+                velocity_limit: u16::MAX,
+                min_position_limit: u16::MAX,
+                max_position_limit: u16::MAX,
+            },
         };
         let fault = FaultEntry {
             seq: u32::MAX,

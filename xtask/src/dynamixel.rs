@@ -96,6 +96,18 @@ fn install_venv_package() -> Result<()> {
     run_status(Command::new("sh").args(["-c", install])).context(install)
 }
 
+/// Clippy on the Nucleo's Dynamixel TTL build (`dynamixel-ttl`: USART2 single-wire half
+/// duplex at the bus's rate), which the boards' own builds do not compile.
+pub fn clippy_ttl() -> Command {
+    let mut clippy = cargo();
+    clippy
+        .args(["clippy", "--release", "--package", "vsa-firmware"])
+        .args(["--target", Board::NucleoF446re.target()])
+        .args(["--no-default-features", "--features", "dynamixel-ttl"])
+        .args(["--", "-D", "warnings"]);
+    clippy
+}
+
 /// Kills the bus (and with it its QEMUs: `vsa` kills its boards on SIGTERM).
 struct Bus(Child);
 
@@ -106,23 +118,15 @@ impl Drop for Bus {
     }
 }
 
-/// Runs the check on `board` with the firmware `elf`; returns the summary.
-pub fn run(board: Board, elf: &Path) -> Result<String> {
-    let python = ensure_sdk()?;
-    run_status(cargo().args(["build", "--quiet", "-p", "vsa-cli", "--bin", "vsa"]))
-        .context("building vsa")?;
-    let vsa = target_dir().join("debug").join("vsa");
-    let link = target_dir().join(format!("dxl-bus-{}", board.feature()));
-    let mut child = Command::new(&vsa)
+/// `vsa serve-qemu --bus` on `board` with `elf` and `args`, its bus at `link`, once it
+/// says it is ready.
+fn start_bus(vsa: &Path, board: Board, elf: &Path, link: &Path, args: &[&str]) -> Result<Bus> {
+    let mut child = Command::new(vsa)
         .args(["serve-qemu", "--board", board.feature(), "--elf"])
         .arg(elf)
-        .args([
-            "--qemu-load",
-            &format!("{}Nm", f64::from(LOAD_MNM) / 1000.0),
-            "--bus",
-        ])
-        .arg(&link)
-        .args(["--ids", "1,2,3"])
+        .arg("--bus")
+        .arg(link)
+        .args(args)
         .stdout(Stdio::piped())
         .spawn()
         .with_context(|| format!("starting {}", vsa.display()))?;
@@ -137,11 +141,51 @@ pub fn run(board: Board, elf: &Path) -> Result<String> {
         "vsa serve-qemu --bus said {ready:?}"
     );
     println!("[{} dynamixel] {}", board.feature(), ready.trim());
+    Ok(bus)
+}
+
+/// Prints what a check printed, prefixed with the board; the number of `ok` lines.
+fn relay(board: Board, out: &std::process::Output) -> usize {
+    let mut passed = 0;
+    for line in String::from_utf8_lossy(&out.stdout).lines() {
+        println!("[{} dynamixel] {line}", board.feature());
+        passed += usize::from(line.starts_with("ok "));
+    }
+    let err = String::from_utf8_lossy(&out.stderr);
+    if !err.trim().is_empty() {
+        eprintln!("{err}");
+    }
+    passed
+}
+
+/// Runs the checks on `board` with the firmware `elf` (the three-board bus, then the bus
+/// settings across power cycles); returns the summary.
+pub fn run(board: Board, elf: &Path) -> Result<String> {
+    let python = ensure_sdk()?;
+    run_status(cargo().args(["build", "--quiet", "-p", "vsa-cli", "--bin", "vsa"]))
+        .context("building vsa")?;
+    let vsa = target_dir().join("debug").join("vsa");
+    let bus = three_boards(&python, &vsa, board, elf)?;
+    let stored = power_cycles(&python, &vsa, board, elf)?;
+    Ok(format!("{bus}; {stored}"))
+}
+
+/// The three boards under load with `sdk_check.py`.
+fn three_boards(python: &Path, vsa: &Path, board: Board, elf: &Path) -> Result<String> {
+    let link = target_dir().join(format!("dxl-bus-{}", board.feature()));
+    let load = format!("{}Nm", f64::from(LOAD_MNM) / 1000.0);
+    let bus = start_bus(
+        vsa,
+        board,
+        elf,
+        &link,
+        &["--qemu-load", &load, "--ids", "1,2,3"],
+    )?;
 
     let latency = std::env::var("DXL_LATENCY_MS").unwrap_or_else(|_| "2500".into());
     let reads = std::env::var("DXL_READS").unwrap_or_else(|_| DEFAULT_READS.to_string());
     let started = Instant::now();
-    let out = Command::new(&python)
+    let out = Command::new(python)
         .arg(workspace_root().join("dynamixel/tests/sdk_check.py"))
         .arg(&link)
         .args(["--latency-ms", &latency, "--reads", &reads])
@@ -154,16 +198,7 @@ pub fn run(board: Board, elf: &Path) -> Result<String> {
         .context("running sdk_check.py")?;
     let secs = started.elapsed().as_secs_f64();
     drop(bus);
-    let text = String::from_utf8_lossy(&out.stdout);
-    let mut passed = 0;
-    for line in text.lines() {
-        println!("[{} dynamixel] {line}", board.feature());
-        passed += usize::from(line.starts_with("ok "));
-    }
-    let err = String::from_utf8_lossy(&out.stderr);
-    if !err.trim().is_empty() {
-        eprintln!("{err}");
-    }
+    let passed = relay(board, &out);
     ensure!(
         out.status.success(),
         "dynamixel-sdk checks failed on {}",
@@ -171,5 +206,80 @@ pub fn run(board: Board, elf: &Path) -> Result<String> {
     );
     Ok(format!(
         "{passed} dynamixel-sdk checks passed in {secs:.0} s"
+    ))
+}
+
+/// One board with a flash file, power-cycled three times (`sdk_persist.py`'s steps, with
+/// `vsa bus` switching the protocol and the ID in between).
+fn power_cycles(python: &Path, vsa: &Path, board: Board, elf: &Path) -> Result<String> {
+    let link = target_dir().join(format!("dxl-persist-{}", board.feature()));
+    let flash = target_dir().join(format!("dxl-flash-{}", board.feature()));
+    let flash_file = flash.with_extension("id1.flash");
+    if flash_file.exists() {
+        std::fs::remove_file(&flash_file)
+            .with_context(|| format!("removing {}", flash_file.display()))?;
+    }
+    let latency = std::env::var("DXL_LATENCY_MS").unwrap_or_else(|_| "2500".into());
+    let started = Instant::now();
+    let mut passed = 0;
+    let flash_arg = flash.to_string_lossy().into_owned();
+    let args = ["--ids", "1", "--qemu-flash", flash_arg.as_str()];
+    let step = |name: &str, passed: &mut usize| -> Result<()> {
+        let out = Command::new(python)
+            .arg(workspace_root().join("dynamixel/tests/sdk_persist.py"))
+            .arg(&link)
+            .arg(name)
+            .args(["--latency-ms", &latency, "--baud", &SDK_BAUD.to_string()])
+            .output()
+            .context("running sdk_persist.py")?;
+        *passed += relay(board, &out);
+        ensure!(
+            out.status.success(),
+            "sdk_persist.py {name} failed on {}",
+            board.feature()
+        );
+        Ok(())
+    };
+    let vsa_bus = |args: &[&str]| -> Result<()> {
+        let out = Command::new(vsa)
+            .arg("--port")
+            .arg(&link)
+            .arg("bus")
+            .args(args)
+            .output()
+            .context("running vsa bus")?;
+        print!(
+            "[{} dynamixel] vsa bus {}: {}",
+            board.feature(),
+            args.join(" "),
+            String::from_utf8_lossy(&out.stdout)
+        );
+        ensure!(
+            out.status.success(),
+            "vsa bus {} failed: {}",
+            args.join(" "),
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
+        Ok(())
+    };
+    {
+        let _bus = start_bus(vsa, board, elf, &link, &args)?;
+        step("fresh", &mut passed)?;
+    }
+    {
+        let _bus = start_bus(vsa, board, elf, &link, &args)?;
+        step("stored", &mut passed)?;
+        vsa_bus(&["--protocol", "2"])?;
+        step("switched", &mut passed)?;
+        vsa_bus(&["--protocol", "2", "--id", "6"])?;
+    }
+    {
+        let _bus = start_bus(vsa, board, elf, &link, &args)?;
+        step("vsa", &mut passed)?;
+    }
+    let _ = std::fs::remove_file(&flash_file);
+    Ok(format!(
+        "{passed} checks of the stored bus settings over 3 power cycles in {:.0} s",
+        started.elapsed().as_secs_f64()
     ))
 }

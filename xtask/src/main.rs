@@ -11,6 +11,7 @@
 mod bench;
 mod board;
 mod checks;
+mod ci_script;
 mod cmd;
 mod defmt_log;
 mod dynamixel;

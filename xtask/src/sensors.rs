@@ -44,14 +44,28 @@ fn encoder_delta(now: u16, before: u16) -> i32 {
 }
 
 /// Checks the output of `vsa sensors --nudge` (see the module docs); the summary for the
-/// log.
+/// log. Every line between the header and the summary must be a full reading: a row
+/// skipped here would make the next one look like the first.
 fn check_stream(stdout: &str) -> Result<String> {
     let mut lines = stdout.lines();
     ensure!(
         lines.next() == Some("tick\tlink_encoder\tgear_pot\tcurrent_adc\tnudge_permille"),
         "no header in {stdout:?}"
     );
-    let rows: Vec<Row> = lines.clone().filter_map(parse_row).collect();
+    let mut lines: Vec<&str> = lines.collect();
+    let summary = lines.pop().unwrap_or_default();
+    ensure!(
+        summary.contains(" readings; "),
+        "no summary line at the end of {stdout:?}"
+    );
+    let rows = lines
+        .iter()
+        .enumerate()
+        .map(|(i, line)| {
+            parse_row(line)
+                .with_context(|| format!("reading {} is not a full row: {line:?}", i + 1))
+        })
+        .collect::<Result<Vec<Row>>>()?;
     ensure!(rows.len() >= 10, "only {} readings: {stdout:?}", rows.len());
     ensure!(
         rows.windows(2).all(|w| w[0].tick < w[1].tick),
@@ -78,7 +92,6 @@ fn check_stream(stdout: &str) -> Result<String> {
         link > 20 && pot > 5,
         "the link ({link} counts) and the pot ({pot} counts) did not follow a positive nudge"
     );
-    let summary = lines.last().unwrap_or_default();
     Ok(format!(
         "{} readings, nudge {NUDGE_PERMILLE} permille for {NUDGE_MS} ms: link +{link} counts, pot +{pot} counts, current ADC {}..{}; {summary}",
         rows.len(),
@@ -156,5 +169,23 @@ mod tests {
         assert!(check_stream(&stream(&backwards)).is_err());
         assert!(check_stream(&stream(&good()[..5])).is_err());
         assert!(check_stream("").is_err());
+    }
+
+    /// A line that is not a full reading is an error of its own, never skipped: a board
+    /// asked before its first control tick once answered zeros with no gear pot
+    /// (`0 0 - 0 0`), the check skipped that row, and the next one, already nudged, passed
+    /// for the first reading.
+    #[test]
+    fn every_line_must_be_a_full_reading() {
+        let mut nudged_first = good();
+        nudged_first.remove(0);
+        let pre_tick =
+            stream(&nudged_first).replacen(HEADER, &format!("{HEADER}0\t0\t-\t0\t0\n"), 1);
+        let e = format!("{:#}", check_stream(&pre_tick).unwrap_err());
+        assert!(e.contains("reading 1 is not a full row"), "{e}");
+        let mut cut = stream(&good());
+        cut.truncate(cut.rfind("n readings").unwrap());
+        let e = format!("{:#}", check_stream(&cut).unwrap_err());
+        assert!(e.contains("no summary line"), "{e}");
     }
 }

@@ -49,19 +49,6 @@ fn step(mut cmd: Command) -> Result<()> {
     Ok(())
 }
 
-/// Runs a check that times real host-side I/O against an emulated board (a client's reply
-/// timeouts on a loaded machine) a second time if the first attempt failed; the first
-/// failure is printed, so a flaky pass is visible in the log. A real defect fails twice.
-fn once_more_if_failed<T>(name: &str, board: Board, check: impl Fn() -> Result<T>) -> Result<T> {
-    check().or_else(|e| {
-        println!(
-            "xtask test: retry {name} on {} after: {e:#}",
-            board.feature()
-        );
-        check()
-    })
-}
-
 /// Runs every check and returns whether all passed.
 pub fn run() -> Result<bool> {
     setup::ensure_targets()?;
@@ -71,6 +58,7 @@ pub fn run() -> Result<bool> {
     let mut fmt = cargo();
     fmt.args(["fmt", "--all", "--", "--check"]);
     tally.record("cargo fmt --check", step(fmt));
+    tally.record("bash -n .ci/run", crate::ci_script::check());
 
     let mut clippy = cargo();
     clippy.args(["clippy", "--all-targets", "--", "-D", "warnings"]);
@@ -87,6 +75,8 @@ pub fn run() -> Result<bool> {
             step(clippy),
         );
     }
+    let ttl = crate::dynamixel::clippy_ttl();
+    tally.record("clippy (firmware, nucleo-f446re dynamixel-ttl)", step(ttl));
 
     // The f32 port the benchmark compares with, on both emulated cores (the firmware's
     // clippy above lints the benchmark program itself).
@@ -166,8 +156,8 @@ pub fn run() -> Result<bool> {
     }
 
     for (board, elf) in elfs.iter().filter(|(b, _)| b.qemu_machine().is_some()) {
-        let result = once_more_if_failed("vsa sensors", *board, || sensors::check(*board, elf))
-            .map(|r| println!("[{} sensors] {r}", board.feature()));
+        let result =
+            sensors::check(*board, elf).map(|r| println!("[{} sensors] {r}", board.feature()));
         tally.record(&format!("vsa sensors on {}", board.feature()), result);
     }
 
@@ -186,10 +176,8 @@ pub fn run() -> Result<bool> {
     }
 
     for (board, elf) in elfs.iter().filter(|(b, _)| b.qemu_machine().is_some()) {
-        let result = once_more_if_failed("dynamixel-sdk", *board, || {
-            crate::dynamixel::run(*board, elf)
-        })
-        .map(|r| println!("[{} dynamixel] {r}", board.feature()));
+        let result = crate::dynamixel::run(*board, elf)
+            .map(|r| println!("[{} dynamixel] {r}", board.feature()));
         tally.record(&format!("dynamixel-sdk on {}", board.feature()), result);
     }
 

@@ -10,6 +10,11 @@
 //! client only, because a board that heard another's reply would take it for a request
 //! (an `Ok` reply and a `Ping` request are the same bytes) and answer it, and the two
 //! would answer each other forever. Use our protocol with one ID on the bus.
+//!
+//! With `--qemu-flash PATH` each board keeps its settings store in its own file, PATH with
+//! the extension `.idN.flash` for the factory ID N given in `--ids`: the bus settings
+//! written on the bus (ID, baud, protocol, …) come back when the same command starts the
+//! boards again.
 
 use std::io::{Read, Write};
 use std::net::TcpStream;
@@ -86,6 +91,14 @@ fn start_boards(ids: &[u8], conn: &ConnectArgs) -> CliResult<Vec<(Adopted, TcpSt
         if target.load_mnm != 0 {
             opts.firmware_args
                 .extend(["--load-mnm".to_owned(), target.load_mnm.to_string()]);
+        }
+        // One flash per board, named for its factory ID: the same command line after a
+        // power cycle gives each board its stored settings back.
+        if let Some(f) = &conn.qemu_flash {
+            let path = f.with_extension(format!("id{id}.flash"));
+            let arg = client::qemu::flash_file_arg(&path)
+                .map_err(|e| CliError::usage("--qemu-flash", e))?;
+            opts.firmware_args.extend(["--flash".to_owned(), arg]);
         }
         let sink = match &target.log {
             None => LogSink::Discard,

@@ -5,6 +5,7 @@
 //! exits with 2 and sends nothing); a refusal, a timeout or a lost connection exits with 1.
 
 pub mod bus;
+mod bus_settings;
 mod config;
 mod impedance;
 mod quantities;
@@ -519,6 +520,8 @@ pub enum BoardCommand {
     Config(config::ConfigCommand),
     /// The faults latched now, or with --log the fault log kept in flash
     Faults(config::FaultsArgs),
+    /// The Dynamixel bus settings, e.g. `bus --protocol 1` or `bus --id 4 --baud 57600`
+    Bus(bus_settings::BusArgs),
 }
 
 /// Arguments of `gains`.
@@ -606,6 +609,7 @@ enum Action {
     },
     Config(config::ConfigCommand),
     Faults(config::FaultsArgs),
+    Bus(client::protocol::BusChange),
 }
 
 /// Checks a command's arguments (errors name the command and the argument).
@@ -636,6 +640,7 @@ fn plan(cmd: &BoardCommand) -> CliResult<Action> {
         BoardCommand::Config(c) => Action::Config(*c),
         BoardCommand::Faults(f) => Action::Faults(*f),
         BoardCommand::Impedance(a) => Action::Impedance(impedance::plan(a)?),
+        BoardCommand::Bus(a) => Action::Bus(bus_settings::plan(a)?),
         BoardCommand::Gains(g) => Action::Gains(plan_gains(g)?),
         BoardCommand::Limits(l) => Action::Limits(plan_limits(l)?),
         BoardCommand::Wait { duration } => {
@@ -808,6 +813,7 @@ fn exec(action: &Action, s: &mut Session) -> CliResult<()> {
         Action::Config(cmd) => config::config(c, *cmd),
         Action::Faults(args) => config::faults(c, *args),
         Action::Impedance(p) => return impedance::run(s, p),
+        Action::Bus(c) => return bus_settings::run(s, c),
     };
     match r {
         Ok(text) => {

@@ -120,17 +120,38 @@ fn summary(rows: &[RawSensors]) -> String {
     s
 }
 
-/// The raw readings of the last control tick.
+/// How long a board that has no reading yet (its control tick has not run since it came
+/// up: it answers busy) is asked again, 1 ms apart, before `vsa sensors` gives up.
+const FIRST_TICK_WAIT: Duration = Duration::from_millis(200);
+
+/// The raw readings of the last control tick; waits out a board whose control tick has
+/// not run yet.
 fn read(s: &mut Session) -> CliResult<RawSensors> {
-    match s.client.request(Request::GetSensors) {
-        Ok(client::Reply::Sensors(r)) => Ok(r),
-        Ok(client::Reply::Error(code)) => Err(CliError::runtime(format!(
-            "the board refused get-sensors: {code}"
-        ))),
-        Ok(other) => Err(CliError::runtime(format!(
-            "unexpected reply to get-sensors: {other:?}"
-        ))),
-        Err(e) => Err(s.fail(&e)),
+    let start = Instant::now();
+    loop {
+        match s.client.request(Request::GetSensors) {
+            Ok(client::Reply::Sensors(r)) => return Ok(r),
+            Err(client::Error::Refused {
+                code: ErrorCode::Busy,
+                ..
+            }) => {
+                if start.elapsed() >= FIRST_TICK_WAIT {
+                    return Err(CliError::runtime(format!(
+                        "the board had no reading within {} ms: has its control loop started?",
+                        FIRST_TICK_WAIT.as_millis()
+                    )));
+                }
+                s.client
+                    .wait(Duration::from_millis(1))
+                    .map_err(|e| s.fail(&e))?;
+            }
+            Ok(other) => {
+                return Err(CliError::runtime(format!(
+                    "unexpected reply to get-sensors: {other:?}"
+                )))
+            }
+            Err(e) => return Err(s.fail(&e)),
+        }
     }
 }
 
@@ -142,13 +163,13 @@ fn nudge(s: &mut Session, duty_permille: i16, duration_ms: u16) -> CliResult<()>
     };
     match s.client.request(req) {
         Ok(client::Reply::Ok) => Ok(()),
-        Ok(client::Reply::Error(ErrorCode::NotAllowed)) => Err(CliError::runtime(
+        Err(client::Error::Refused {
+            code: ErrorCode::NotAllowed,
+            ..
+        }) => Err(CliError::runtime(
             "the board refused the nudge: the motor must be disabled with no fault latched \
              (`vsa disable`, `vsa clear`)",
         )),
-        Ok(client::Reply::Error(code)) => Err(CliError::runtime(format!(
-            "the board refused the nudge: {code}"
-        ))),
         Ok(other) => Err(CliError::runtime(format!(
             "unexpected reply to nudge: {other:?}"
         ))),

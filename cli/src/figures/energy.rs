@@ -23,7 +23,8 @@
 //!   see README): a limit cycle of roughly 30 ms period (seen at L = 1 and 4 mm) with up
 //!   to ±1 A of motor current.
 //!
-//! A run holds [`SETTLE_TICKS`] (the load is taken up), starts the sine, skips the first
+//! A run holds [`SETTLE_TICKS`] (the load is taken up; `vsa advise` holds longer at soft
+//! settings, [`Motion::settle_ticks`]), starts the sine, skips the first
 //! second ([`SKIP_TICKS`]: one cycle at 1 Hz, three at 3 Hz, the start transient; with the
 //! load, later cycles agree with the counted ones to 4 digits) and averages the energies
 //! over the next whole cycles (2 at 1 Hz, 6 at 3 Hz).
@@ -104,6 +105,8 @@ pub struct Motion {
     pub gravity_nm: f64,
     /// Whole cycles averaged after [`SKIP_TICKS`].
     pub cycles: u32,
+    /// Ticks of hold before the sine starts (the controller takes up the load).
+    pub settle_ticks: u32,
 }
 
 /// The four series: 1 Hz and 3 Hz, with and without the load.
@@ -115,6 +118,7 @@ pub const SERIES: [Motion; 4] = [
         load_nm: LOAD_NM,
         gravity_nm: 0.0,
         cycles: 2,
+        settle_ticks: SETTLE_TICKS,
     },
     Motion {
         key: "loaded_3hz",
@@ -123,6 +127,7 @@ pub const SERIES: [Motion; 4] = [
         load_nm: LOAD_NM,
         gravity_nm: 0.0,
         cycles: 6,
+        settle_ticks: SETTLE_TICKS,
     },
     Motion {
         key: "unloaded_1hz",
@@ -131,6 +136,7 @@ pub const SERIES: [Motion; 4] = [
         load_nm: 0.0,
         gravity_nm: 0.0,
         cycles: 2,
+        settle_ticks: SETTLE_TICKS,
     },
     Motion {
         key: "unloaded_3hz",
@@ -139,6 +145,7 @@ pub const SERIES: [Motion; 4] = [
         load_nm: 0.0,
         gravity_nm: 0.0,
         cycles: 6,
+        settle_ticks: SETTLE_TICKS,
     },
 ];
 
@@ -250,7 +257,7 @@ pub fn energy_of_commands(
     sc.design = *d;
     sc.load_nm = m.load_nm as f32;
     sc.gravity_nm = m.gravity_nm as f32;
-    sc.settle_ticks = SETTLE_TICKS;
+    sc.settle_ticks = m.settle_ticks;
     sc.run_ticks = SKIP_TICKS + window;
     sc.rms_from_ticks = SKIP_TICKS;
     let vs = f64::from(pc.motor.supply_voltage_v);
@@ -259,7 +266,7 @@ pub fn energy_of_commands(
     let ke = f64::from(pc.motor.back_emf_v_s_per_rad);
     let dt = f64::from(plant::TICK_S);
     let full = f64::from(plant::DUTY_FULL_SCALE);
-    let from = SETTLE_TICKS + SKIP_TICKS;
+    let from = m.settle_ticks + SKIP_TICKS;
     let mut e = CycleEnergy::default();
     let mut last_gear = 0.0f64;
     let metrics = harness::run_script(&sc, script, |s| {

@@ -96,9 +96,8 @@ mod app {
             run.idle,
         );
         defmt::info!(
-            "host link: USART2, protocol version {=u8}; Dynamixel ID {=u8}, Protocol 1.0",
-            protocol::VERSION,
-            run.dxl_id
+            "host link: USART2, protocol version {=u8}",
+            protocol::VERSION
         );
         let mut actuator = Actuator::new(parts.servo);
         let mut service = parts.service;
@@ -199,6 +198,7 @@ mod app {
     #[task(binds = EXTI1, priority = 1, shared = [actuator], local = [link])]
     fn serial(mut cx: serial::Context) {
         cx.local.link.poll(&mut cx.shared.actuator);
+        firmware::bus::follow_baud(cx.local.link);
     }
 
     /// Writes the queued items to defmt (and ends an emulated run).

@@ -32,7 +32,7 @@ pub use flash_file::{
     open as open_settings, SettingsFlash, SettingsStore, POWER_CUT_EXIT, SETTINGS_FLASH,
 };
 #[cfg(feature = "nucleo-f446re")]
-pub use nucleo::{force_bridge_off, halt_after_fault, pac, Nucleo as Selected};
+pub use nucleo::{force_bridge_off, halt_after_fault, pac, Nucleo as Selected, USART2_CLOCK_HZ};
 #[cfg(feature = "nucleo-f446re")]
 pub use nucleo_flash::{open as open_settings, SettingsFlash, SettingsStore, SETTINGS_FLASH};
 #[cfg(feature = "qemu")]

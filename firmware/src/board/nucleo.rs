@@ -21,6 +21,7 @@
 //! | gear-side potentiometer                  | PA1  | ADC1_IN1                         | CN8 A1        |
 //! | host link TX (USB VCP)                   | PA2  | USART2_TX, AF7                   | ST-LINK VCP   |
 //! | host link RX (USB VCP)                   | PA3  | USART2_RX, AF7, DMA1 stream 5    | ST-LINK VCP   |
+//! | or (`dynamixel-ttl`) Dynamixel data      | PA2  | USART2 half duplex, AF7, open drain | CN10 35 (SB13/SB14 open, docs/dynamixel.md) |
 //! | independent µs clock                     | –    | TIM2 (internal)                  | –             |
 //! | current-sense trigger                    | –    | TIM1 CH4 (internal, no pin)      | –             |
 //! | watchdog                                 | –    | IWDG (LSI), 80 ms                | –             |
@@ -138,6 +139,9 @@ const SYSCLK_HZ: u32 = 180_000_000;
 
 /// APB1 clock, Hz (its timers, TIM2 and TIM3, run at twice this).
 const PCLK1_HZ: u32 = 45_000_000;
+
+/// USART2's clock, Hz: PCLK1 (`drivers::usart_baud::divider` makes its rates from it).
+pub const USART2_CLOCK_HZ: u32 = PCLK1_HZ;
 
 /// APB2 clock, Hz: ADC1's bus clock.
 const PCLK2_HZ: u32 = 90_000_000;
@@ -343,8 +347,15 @@ fn init(device: pac::Peripherals) -> Parts<Nucleo> {
     .install();
 
     // The host link: USART2 on the ST-LINK virtual COM port, received by DMA1 stream 5.
-    let _link_tx = gpioa.pa2.into_alternate::<7>();
-    let _link_rx = gpioa.pa3.into_alternate::<7>();
+    #[cfg(not(feature = "dynamixel-ttl"))]
+    let _link = (
+        gpioa.pa2.into_alternate::<7>(),
+        gpioa.pa3.into_alternate::<7>(),
+    );
+    // Or on a Dynamixel TTL bus: PA2 alone, open drain (the bus's pull-up holds it high
+    // when idle), USART2 in single-wire half-duplex mode (`serial`).
+    #[cfg(feature = "dynamixel-ttl")]
+    let _link = gpioa.pa2.into_alternate_open_drain::<7>();
     pac::USART2::enable(&mut rcc);
     pac::USART2::reset(&mut rcc);
     let Some(ring) = cortex_m::singleton!(: [u8; RX_RING] = [0; RX_RING]) else {

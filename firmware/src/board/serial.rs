@@ -31,6 +31,10 @@ impl Serial {
         });
         usart.cr2().reset();
         usart.cr3().write(|w| w.dmar().bit(dma_rx));
+        // A Dynamixel TTL bus: single-wire half duplex on TX (RM0390 §25.3.11), set while
+        // UE is 0. The receiver hears the line, our own bytes included (see `SerialTx`).
+        #[cfg(feature = "dynamixel-ttl")]
+        usart.cr3().modify(|_, w| w.hdsel().set_bit());
         usart.cr1().write(|w| {
             w.ue()
                 .set_bit()
@@ -231,10 +235,65 @@ impl embedded_io::ErrorType for SerialTx {
     type Error = TxTimeout;
 }
 
+#[cfg(feature = "nucleo-f446re")]
+impl SerialTx {
+    /// Waits (at most [`TX_SPIN_LIMIT`] polls) until the last byte written has left the
+    /// shift register (TC).
+    fn wait_transmitted(&self) {
+        let mut polls = 0;
+        while self.usart.sr().read().tc().bit_is_clear() && polls < TX_SPIN_LIMIT {
+            polls += 1;
+        }
+    }
+
+    /// Changes the line rate to the divider `brr` with 8× oversampling if `over8`
+    /// (`drivers::usart_baud::divider`), once what was written has gone out: the status
+    /// packet that changed the rate leaves at the old one.
+    pub fn set_divider(&self, brr: u16, over8: bool) {
+        self.wait_transmitted();
+        // OVER8 and BRR are written with the USART disabled (RM0390 §25.6.4).
+        self.usart.cr1().modify(|_, w| w.ue().clear_bit());
+        self.usart.brr().write(|w| {
+            w.div_mantissa()
+                .set(brr >> 4)
+                .div_fraction()
+                .set((brr & 0xF) as u8)
+        });
+        self.usart
+            .cr1()
+            .modify(|_, w| w.over8().bit(over8).ue().set_bit());
+    }
+}
+
 impl embedded_io::Write for SerialTx {
     /// Sends the bytes TXE takes, waiting for it before each; returns how many went out,
     /// or [`TxTimeout`] if not even the first did within [`TX_SPIN_LIMIT`] polls.
+    ///
+    /// On a Dynamixel TTL bus (single wire) the receiver is off from the first byte until
+    /// the last has left the shift register, so the board does not hear its own status
+    /// (the other devices' statuses it must hear: a SYNC READ's chain follows them).
     fn write(&mut self, bytes: &[u8]) -> Result<usize, TxTimeout> {
+        #[cfg(feature = "dynamixel-ttl")]
+        {
+            self.usart.cr1().modify(|_, w| w.re().clear_bit());
+            let sent = self.send(bytes);
+            self.wait_transmitted();
+            self.usart.cr1().modify(|_, w| w.re().set_bit());
+            sent
+        }
+        #[cfg(not(feature = "dynamixel-ttl"))]
+        self.send(bytes)
+    }
+
+    /// Nothing is buffered: each byte is in the data register when `write` returns.
+    fn flush(&mut self) -> Result<(), TxTimeout> {
+        Ok(())
+    }
+}
+
+impl SerialTx {
+    /// The bytes TXE takes, waiting for it before each (see [`embedded_io::Write::write`]).
+    fn send(&mut self, bytes: &[u8]) -> Result<usize, TxTimeout> {
         for (sent, &b) in bytes.iter().enumerate() {
             let mut polls = 0;
             while self.usart.sr().read().txe().bit_is_clear() {
@@ -246,10 +305,5 @@ impl embedded_io::Write for SerialTx {
             self.usart.dr().write(|w| w.dr().set(u16::from(b)));
         }
         Ok(bytes.len())
-    }
-
-    /// Nothing is buffered: each byte is in the data register when `write` returns.
-    fn flush(&mut self) -> Result<(), TxTimeout> {
-        Ok(())
     }
 }

@@ -218,7 +218,7 @@ mod tests {
         let mut p = Pipeline::nominal();
         for k in 0..BOOT_TICKS {
             // A sense reading 2248 ± 3 at 0 A.
-            p.tick(&mut s, &raw(0, 512, 2245 + (k % 7) as u16));
+            p.tick(&mut s, &raw(0, 512, 2245 + k % 7));
         }
         assert_eq!(p.corrector().current_offset_q16() >> 16, 2247);
         p.tick(&mut s, &raw(0, 512, 2248));

@@ -7,6 +7,7 @@ use super::config::Config;
 use super::error::ControlError;
 use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Q16_ONE};
 use super::schedule::Schedule;
+use super::sine_feedforward::FeedForward;
 use super::trajectory::{Command, Reference, Trajectory};
 use crate::design::Design;
 use crate::sensors::{
@@ -18,6 +19,8 @@ use crate::units::{Angle, Torque};
 /// One encoder count per tick (1000 ticks/s) as a velocity, 2π/4096 rad · 1000 /s, Q16
 /// (1.534 rad/s).
 const COUNT_PER_TICK_Q16: i32 = turn_fraction_bits(1000, ENCODER_COUNTS as u64, 16) as i32;
+/// Ticks in a row the rest hold's conditions must hold before it starts (20 ms).
+const REST_TICKS: u8 = 20;
 /// ADC counts → A in Q16: 1024 counts/A, so ×64.
 const ADC_TO_Q16_SHIFT: u32 = 6;
 
@@ -106,6 +109,8 @@ pub struct Controller {
     config: Config,
     sched: Schedule,
     traj: Trajectory,
+    /// Feed-forward gains of the running reference (the two-mass inverse for a sine).
+    ff: FeedForward,
     started: bool,
     commanded: bool,
     enc_prev: u16,
@@ -137,6 +142,8 @@ pub struct Controller {
     theta_g_valid: bool,
     /// The observer's velocity bias the complementary filter found, rad/s Q32.
     w_bias: i64,
+    /// Ticks in a row the rest hold's conditions have held.
+    rest_ticks: u8,
 }
 
 impl Controller {
@@ -150,6 +157,7 @@ impl Controller {
         Ok(Controller {
             design: *design,
             config: *config,
+            ff: FeedForward::rigid(&sched),
             sched,
             traj: Trajectory::new(Angle::ZERO),
             started: false,
@@ -169,6 +177,7 @@ impl Controller {
             theta_g: 0,
             theta_g_valid: false,
             w_bias: 0,
+            rest_ticks: 0,
         })
     }
 
@@ -177,9 +186,11 @@ impl Controller {
     /// controller state (integrator, filters, trajectory) carries over.
     ///
     /// # Errors
-    /// As [`Schedule::new`].
+    /// As [`Schedule::new`]; [`ControlError::Overflow`] if a running sine's feed-forward
+    /// does not fit its format.
     pub fn configure(&mut self, config: &Config) -> Result<(), ControlError> {
         let sched = Schedule::new(&self.design, config)?;
+        self.ff = self.ff.reconfigure(&sched, config)?;
         self.sched = sched;
         self.config = *config;
         self.defl_valid = false;
@@ -210,7 +221,9 @@ impl Controller {
     /// # Errors
     /// [`ControlError::TrajectoryOutOfRange`]; the running trajectory is untouched.
     pub fn command(&mut self, cmd: Command) -> Result<(), ControlError> {
+        let ff = FeedForward::for_command(&self.sched, &self.config, &cmd)?;
         self.traj.command(cmd)?;
+        self.ff = ff;
         self.commanded = true;
         Ok(())
     }
@@ -218,6 +231,7 @@ impl Controller {
     /// Forgets the loop state (integrator, filters, encoder unwrapping); the next step
     /// holds the link where it is.
     pub fn reset(&mut self) {
+        self.ff = FeedForward::rigid(&self.sched);
         self.started = false;
         self.commanded = false;
         self.w_link = 0;
@@ -231,6 +245,7 @@ impl Controller {
         self.defl_valid = false;
         self.theta_g_valid = false;
         self.w_bias = 0;
+        self.rest_ticks = 0;
     }
 
     /// One 1 kHz control step. Total: no panics, saturating arithmetic throughout.
@@ -326,6 +341,26 @@ impl Controller {
         }
 
         let e = if in_count { 0 } else { q32_to_q16(e_q32) };
+        // Rest without load (the integrator holds < `REST_LOAD_NM` and the torque estimate
+        // is below `REST_TORQUE_NM`, which a raw step's unwound integrator can hide): while the link is
+        // within 1.5·φ_b of a stationary reference the gear stays where it is (no position
+        // action; the integrator only holds the gear, as inside the reference's count): a
+        // gear that chases the link in the free play throws it from wall to wall, a still
+        // one only takes energy out of it at each contact. A load that turns up makes the
+        // gear creep, the hold integrates it and the integrator leaves the band.
+        let calm = q32_to_q16(self.integ).saturating_abs() < s.rest_load_q16
+            && tau.saturating_abs() < s.rest_torque_q16
+            && r.velocity_q16 == 0
+            && r.acceleration_q16 == 0
+            && q32_to_q16(e_q32).saturating_abs() <= s.rest_zone_q16;
+        // The conditions must hold for `REST_TICKS` in a row: a loaded link passes through
+        // them for a few ticks at the end of a raw step (the integrator unwinds).
+        self.rest_ticks = if calm {
+            self.rest_ticks.saturating_add(1)
+        } else {
+            0
+        };
+        let resting = self.rest_ticks >= REST_TICKS;
         // The position loop acts on the gear: where the gear should be (the reference plus
         // the deflection the coupling needs) minus the gear estimate. The link enters it
         // below ω_o only, so the link's rattle in the free play does not drive the motor.
@@ -343,10 +378,11 @@ impl Controller {
             .saturating_add(s.alpha.apply(r.velocity_q16.saturating_sub(self.w_ref)));
 
         // --- feed-forward: trajectory, then free play and compliance ---
-        let u_ff = s
-            .ff_vel
+        let u_ff = self
+            .ff
+            .vel
             .apply(r.velocity_q16)
-            .saturating_add(s.ff_acc.apply(r.acceleration_q16));
+            .saturating_add(self.ff.acc.apply(r.acceleration_q16));
         let u_i = q32_to_q16(self.integ);
         let tau_ref = s
             .j_link
@@ -368,7 +404,11 @@ impl Controller {
         // --- PID (derivative on the filtered link velocity) ---
         let u = u_ff
             .saturating_add(u_defl)
-            .saturating_add(s.kp.apply(if floating { e_g } else { e }))
+            .saturating_add(if resting {
+                0
+            } else {
+                s.kp.apply(if floating { e_g } else { e })
+            })
             .saturating_add(u_i)
             .saturating_add(s.kd.apply(self.w_ref.saturating_sub(self.w_fb)));
 
@@ -435,7 +475,7 @@ impl Controller {
         // cannot let the link creep out of the count. Its dead band is the observer's
         // resolution and bias bound (current offset, and R error × |i|): a hold that
         // chased the bias of a warm motor under load hunted.
-        let inc = if in_count {
+        let inc = if in_count || resting {
             let slip = w_gear.saturating_sub(r.velocity_q16);
             let dead_band = s
                 .w_deadband_q16

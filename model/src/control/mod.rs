@@ -11,7 +11,8 @@
 //!    pot's deflection-based estimate by inverse variance;
 //! 4. reference r, ṙ, r̈ from [`trajectory`];
 //! 5. error e = r − θ_l, zero while r lies in the measured encoder count;
-//! 6. feed-forward of the rigid inverse model, plus the free-play and compliance
+//! 6. feed-forward of the rigid inverse model (the two-mass inverse for a sine,
+//!    [`sine_feedforward`]), plus the free-play and compliance
 //!    compensation (a dead-zone inverse on the gear side);
 //! 7. PID with the derivative on the filtered gear velocity; integral separation, and a
 //!    gear hold inside the target count (dead band: the observer's bias bound for a
@@ -38,6 +39,7 @@ pub mod gain;
 pub mod impedance;
 pub mod schedule;
 pub mod sine;
+pub mod sine_feedforward;
 pub mod trajectory;
 pub mod validate;
 mod wide;

@@ -175,6 +175,18 @@ pub fn request() -> impl Strategy<Value = Request> {
                 damping_unms_per_rad: d,
                 torque_unm: t.saturating_mul(64),
             }),
+        (
+            proptest::option::of(0u8..=3),
+            proptest::option::of(prop_oneof![Just(0u8), Just(253), Just(254), any::<u8>()]),
+            proptest::option::of(prop_oneof![Just(0u32), Just(1_000_000), any::<u32>()])
+        )
+            .prop_map(|(protocol_version, id, baud_bps)| Request::SetBus(
+                protocol::BusChange {
+                    protocol_version,
+                    id,
+                    baud_bps
+                }
+            )),
     ]
 }
 
@@ -206,6 +218,7 @@ pub fn request_index(r: &Request) -> u32 {
         Request::FactoryReset => 22,
         Request::FaultsLog { .. } => 23,
         Request::Impedance { .. } => 24,
+        Request::SetBus(_) => 25,
     }
 }
 
@@ -386,6 +399,7 @@ pub enum Call {
     FactoryReset,
     FaultsLog(u8),
     Impedance(i32, u32, u32, i32),
+    SetBus(protocol::BusChange),
 }
 
 /// A device that records every call and keeps a little state, refusing like the
@@ -663,6 +677,11 @@ impl Device for MockDevice {
         self.calls.push(Call::FaultsLog(index));
         Ok((0, None))
     }
+
+    fn set_bus(&mut self, change: &protocol::BusChange) -> Result<(), ErrorCode> {
+        self.calls.push(Call::SetBus(*change));
+        Ok(())
+    }
 }
 
 /// The call a valid request makes (`None` for `Ping`).
@@ -714,6 +733,7 @@ pub fn expected_call(r: &Request) -> Option<Call> {
             damping_unms_per_rad,
             torque_unm,
         ),
+        Request::SetBus(change) => Call::SetBus(change),
     })
 }
 

@@ -180,16 +180,32 @@ pub fn bus() -> impl Strategy<Value = BusSettings> {
         0u8..=2,
         0u16..=511,
         511u16..=1023,
+        (0u16..=1023, 0u8..=100, 50u8..=160, 0u8..=127, 0u16..=2047),
     )
-        .prop_map(|(id, (proto, baud), delay, level, cw, ccw)| BusSettings {
-            id,
-            baud_bps: baud,
-            protocol_version: proto,
-            return_delay_2us: delay,
-            status_return_level: level,
-            cw_angle_limit: cw,
-            ccw_angle_limit: ccw,
-        })
+        .prop_map(
+            |(id, (proto, baud), delay, level, cw, ccw, (torque, temp, volt, mask, pos))| {
+                BusSettings {
+                    id,
+                    baud_bps: baud,
+                    protocol_version: proto,
+                    return_delay_2us: delay,
+                    status_return_level: level,
+                    cw_angle_limit: cw,
+                    ccw_angle_limit: ccw,
+                    limits: store::BusLimits {
+                        max_torque: torque,
+                        temperature_limit: temp,
+                        min_voltage_limit: volt,
+                        max_voltage_limit: volt,
+                        alarm_led: mask,
+                        shutdown: mask,
+                        velocity_limit: torque,
+                        min_position_limit: pos,
+                        max_position_limit: pos + 2048,
+                    },
+                }
+            },
+        )
 }
 
 /// Valid record sets, each record present or not.
