@@ -43,9 +43,18 @@ fn latest(client: &mut Client, wait: Duration) -> Result<TelemetryFrame> {
 /// One power-up at `angle` rad; what it measured.
 fn one(board: ClientBoard, elf: &Path, angle: f64) -> Result<String> {
     let mut opts = QemuOptions::new(board, elf);
-    opts.firmware_args = vec!["--plant".into(), format!("power-up-angle={angle}rad")];
+    // The step sweep's 0.3 N·m, hung on at the first driven tick, keeps the beams in
+    // contact for the move (a free link floats in the free play).
+    opts.firmware_args = vec![
+        "--plant".into(),
+        format!("power-up-angle={angle}rad"),
+        "--load-mnm".into(),
+        "300".into(),
+    ];
     let (_qemu, mut client) =
         QemuBoard::start_with(&opts, LogSink::Discard).map_err(|e| anyhow!("{e}"))?;
+    // The boot window: 32 ms of alignment, the motor off.
+    client.wait(Duration::from_millis(100))?;
     let st = client.status()?;
     ensure!(
         st.faults.is_empty() && st.state == State::Disabled,
