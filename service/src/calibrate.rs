@@ -21,8 +21,9 @@ use model::calibration::sequence::{
 use model::sensors::{ADC_MID, ENCODER_COUNTS};
 use model::servo::{BridgeDemand, ServoState, TickInput, TickOutput};
 use model::Inertia;
-use protocol::{Calibration, CalibrationProgress, CalibrationReport, ErrorCode};
+use protocol::{CalibrationProgress, CalibrationReport, ErrorCode};
 use rtic_core::Mutex;
+use store::Calibration;
 
 use crate::{Actuator, Service, ServiceDevice};
 
@@ -142,20 +143,17 @@ fn record(r: &CalibrationResult) -> Calibration {
         stiffness_mnm_per_rad: None,
         clutch_length_um: None,
         stiffness_uncertainty_permille: 1000,
+        encoder_counts_per_turn: c.encoder_counts_per_turn,
+        pot_gain_ppm: q16_ppm(c.pot_gain_q16),
+        current_gain_ppm: q16_ppm(c.current_gain_q16),
+        pot_error_centi: None,
     }
 }
 
-/// The sensor correction of a stored calibration (the pot's gain is not stored: nominal).
-fn correction(c: &Calibration) -> SensorCorrection {
-    let sign = |v: i8| if v < 0 { Sign::Minus } else { Sign::Plus };
-    SensorCorrection {
-        motor_polarity: sign(c.motor_polarity),
-        encoder_direction: sign(c.encoder_direction),
-        pot_direction: sign(c.pot_direction),
-        pot_center_q16: (i32::from(POT_CENTER) + i32::from(c.pot_offset_counts)) << 16,
-        current_offset_q16: (i32::from(ADC_MID) + i32::from(c.current_offset_counts)) << 16,
-        ..SensorCorrection::NOMINAL
-    }
+/// Q16 → ppm, rounded, within the record's gain range (the sequence keeps gains there).
+fn q16_ppm(q16: i32) -> u32 {
+    let ppm = (i64::from(q16) * 1_000_000 + (1 << 15)) >> 16;
+    (ppm.max(0) as u32).clamp(store::records::GAIN_MIN_PPM, store::records::GAIN_MAX_PPM)
 }
 
 impl Service {
@@ -237,7 +235,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
     pub(crate) fn calibration_report(&mut self) -> CalibrationReport {
         CalibrationReport {
             progress: self.actuator.lock(|a| a.calibration.progress),
-            calibration: self.service.calibration(),
+            calibration: self.service.calibration().map(|c| c.wire()),
         }
     }
 
@@ -255,7 +253,9 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
             fixed::types::I32F32::from_bits(crate::micro_to_q32(cal.back_emf_uv_s_per_rad.into()));
         config.link_inertia =
             Inertia::from_int(i32::try_from(cal.link_inertia_kg_mm2).unwrap_or(i32::MAX));
-        let correction = correction.unwrap_or_else(|| self::correction(cal));
+        let correction = correction.unwrap_or_else(|| {
+            crate::correction::sensor_correction(cal, &self.service.supervision)
+        });
         // Checked before anything changes; installing it starts the layer's boot window
         // (the encoder aligned to the pot again in the new frame, motor off).
         model::calibration::correction::Corrector::new(&correction)

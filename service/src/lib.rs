@@ -37,6 +37,7 @@ use rtic_core::Mutex;
 
 mod bus_settings;
 pub mod calibrate;
+pub mod correction;
 pub mod dynamixel;
 mod impedance;
 pub mod line;

@@ -384,6 +384,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         }
         self.service.settings.stored = boot.set;
         self.apply_stored_calibration();
+        self.install_stored_correction();
         Ok((boot.report, faults))
     }
 

@@ -83,7 +83,7 @@ fn a_calibration_runs_from_disabled_and_its_result_drives_the_controller() {
         i64::from(c.link_inertia_kg_mm2)
     );
     // Without a store the calibration is in force until the next boot.
-    assert_eq!(b.service.calibration(), Some(c));
+    assert_eq!(b.service.calibration().map(|s| s.wire()), Some(c));
     // The new correction is installed: the correction layer aligns the encoder to the pot
     // again first (motor off), then the loop closes on it: a move with no fault.
     assert_eq!(b.ask(Request::Enable), Reply::Error(ErrorCode::NotAllowed));

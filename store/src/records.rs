@@ -6,6 +6,7 @@
 //! layout for is rejected, never decoded as the current one.
 
 use dynamixel::{Field, Protocol};
+use model::calibration::pot_error::{MAX_ERROR_CENTI, POT_ERROR_BINS};
 use protocol::{FaultRecord, Gains, Limits, Request, CLUTCH_MAX_UM, CLUTCH_MIN_UM};
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
 
@@ -50,7 +51,8 @@ impl core::fmt::Display for Rejection {
 ///
 /// When a layout changes: keep the old struct (e.g. `ConfigV1`), bump [`Record::VERSION`],
 /// and make [`Record::migrate`] decode the old layout and convert it, checked like any
-/// other value afterwards. Today every record is at version 1 and nothing older exists.
+/// other value afterwards. The calibration is at version 2 (version 1 migrates); the other
+/// records are at version 1.
 pub trait Record: Serialize + DeserializeOwned {
     /// Name in the boot log and in errors.
     const NAME: &'static str;
@@ -162,8 +164,109 @@ impl Record for Config {
 }
 
 /// The calibration of a real build (the result of the calibration sequence), in integer
-/// units: the protocol's [`protocol::Calibration`], stored as it is sent (one definition).
-pub use protocol::Calibration;
+/// units of the protocol's kind.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Calibration {
+    /// Motor polarity, ±1 (−1: the bridge's sense is reversed in software).
+    pub motor_polarity: i8,
+    /// Link encoder direction, ±1.
+    pub encoder_direction: i8,
+    /// Gear potentiometer direction, ±1.
+    pub pot_direction: i8,
+    /// Current-sense offset, ADC counts, |·| ≤ [`CURRENT_OFFSET_MAX`].
+    pub current_offset_counts: i16,
+    /// Pot-to-encoder alignment offset, pot counts, |·| ≤ [`POT_OFFSET_MAX`].
+    pub pot_offset_counts: i16,
+    /// Motor winding resistance, mΩ, > 0.
+    pub resistance_mohm: u32,
+    /// Back-EMF constant, µV·s/rad, > 0.
+    pub back_emf_uv_s_per_rad: u32,
+    /// Gear friction torque at the output, µN·m.
+    pub gear_friction_unm: u32,
+    /// Link inertia, kg·mm², as [`Config::link_inertia_kg_mm2`].
+    pub link_inertia_kg_mm2: u32,
+    /// Identified joint stiffness, mN·m/rad; `None` where the sensors cannot resolve it.
+    pub stiffness_mnm_per_rad: Option<u32>,
+    /// Clutch length from that stiffness, µm, in [`CLUTCH_MIN_UM`]..=[`CLUTCH_MAX_UM`];
+    /// `None` where the stiffness is not resolved.
+    pub clutch_length_um: Option<u32>,
+    /// Relative 1-σ uncertainty of the stiffness, ‰, ≤ 1000.
+    pub stiffness_uncertainty_permille: u16,
+    /// Link encoder counts per turn, 16..=16384 (the timer's count per turn: 4 per pulse
+    /// of an incremental output, e.g. 4000 for an AS5047P's factory 1000 pulses).
+    pub encoder_counts_per_turn: u16,
+    /// Pot slope relative to the nominal 1024 counts per 300°, ppm, in
+    /// [`GAIN_MIN_PPM`]..=[`GAIN_MAX_PPM`].
+    pub pot_gain_ppm: u32,
+    /// Current-sense slope relative to the nominal 1024 counts/A, ppm, in
+    /// [`GAIN_MIN_PPM`]..=[`GAIN_MAX_PPM`].
+    pub current_gain_ppm: u32,
+    /// The pot's measured error bound per sixteenth of its track
+    /// (`model::calibration::pot_error`), pot counts × 100, each ≤ 5000; `None`: not
+    /// measured (the supervisor's fixed pot tolerance applies).
+    pub pot_error_centi: Option<[u16; POT_ERROR_BINS]>,
+}
+
+impl Calibration {
+    /// What the host link reports of it ([`protocol::Calibration`]: the fields a user
+    /// reads; the gains, counts per turn and pot table stay on the board).
+    #[must_use]
+    pub const fn wire(&self) -> protocol::Calibration {
+        protocol::Calibration {
+            motor_polarity: self.motor_polarity,
+            encoder_direction: self.encoder_direction,
+            pot_direction: self.pot_direction,
+            current_offset_counts: self.current_offset_counts,
+            pot_offset_counts: self.pot_offset_counts,
+            resistance_mohm: self.resistance_mohm,
+            back_emf_uv_s_per_rad: self.back_emf_uv_s_per_rad,
+            gear_friction_unm: self.gear_friction_unm,
+            link_inertia_kg_mm2: self.link_inertia_kg_mm2,
+            stiffness_mnm_per_rad: self.stiffness_mnm_per_rad,
+            clutch_length_um: self.clutch_length_um,
+            stiffness_uncertainty_permille: self.stiffness_uncertainty_permille,
+        }
+    }
+}
+
+/// Lowest pot or current-sense gain, ppm (0.5).
+pub const GAIN_MIN_PPM: u32 = 500_000;
+/// Highest pot or current-sense gain, ppm (2).
+pub const GAIN_MAX_PPM: u32 = 2_000_000;
+/// One, ppm: the gain of a nominal sensor.
+pub const GAIN_ONE_PPM: u32 = 1_000_000;
+
+/// [`Calibration`] as schema version 1 wrote it (before the encoder's counts per turn, the
+/// pot and current gains and the pot's error table); read only, by [`Record::migrate`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+struct CalibrationV1 {
+    /// Motor polarity, ±1 (−1: the bridge's sense is reversed in software).
+    motor_polarity: i8,
+    /// Link encoder direction, ±1.
+    encoder_direction: i8,
+    /// Gear potentiometer direction, ±1.
+    pot_direction: i8,
+    /// Current-sense offset, ADC counts, |·| ≤ [`CURRENT_OFFSET_MAX`].
+    current_offset_counts: i16,
+    /// Pot-to-encoder alignment offset, pot counts, |·| ≤ [`POT_OFFSET_MAX`].
+    pot_offset_counts: i16,
+    /// Motor winding resistance, mΩ, > 0.
+    resistance_mohm: u32,
+    /// Back-EMF constant, µV·s/rad, > 0.
+    back_emf_uv_s_per_rad: u32,
+    /// Gear friction torque at the output, µN·m.
+    gear_friction_unm: u32,
+    /// Link inertia, kg·mm², as [`Config::link_inertia_kg_mm2`].
+    link_inertia_kg_mm2: u32,
+    /// Identified joint stiffness, mN·m/rad; `None` where the sensors cannot resolve it.
+    stiffness_mnm_per_rad: Option<u32>,
+    /// Clutch length from that stiffness, µm, in [`CLUTCH_MIN_UM`]..=[`CLUTCH_MAX_UM`];
+    /// `None` where the stiffness is not resolved.
+    clutch_length_um: Option<u32>,
+    /// Relative 1-σ uncertainty of the stiffness, ‰, ≤ 1000.
+    stiffness_uncertainty_permille: u16,
+}
 
 /// Largest |current-sense offset|, ADC counts: half the 12-bit scale.
 pub const CURRENT_OFFSET_MAX: i16 = model::sensors::ADC_MID as i16;
@@ -172,7 +275,40 @@ pub const POT_OFFSET_MAX: i16 = (model::sensors::POT_COUNTS / 2) as i16;
 
 impl Record for Calibration {
     const NAME: &'static str = "calibration";
-    const VERSION: u8 = 1;
+    const VERSION: u8 = 2;
+
+    /// Version 1 lacked the encoder's counts per turn, the gains and the pot's error
+    /// table: those of the nominal build (4096 counts, unit gains, no table).
+    fn migrate(version: u8, body: &[u8]) -> Result<Self, Rejection> {
+        if version != 1 {
+            return Err(Rejection::UnknownVersion {
+                found: version,
+                current: Self::VERSION,
+            });
+        }
+        let v1: CalibrationV1 = match postcard::take_from_bytes(body) {
+            Ok((v, [])) => v,
+            _ => return Err(Rejection::Undecodable),
+        };
+        Ok(Calibration {
+            motor_polarity: v1.motor_polarity,
+            encoder_direction: v1.encoder_direction,
+            pot_direction: v1.pot_direction,
+            current_offset_counts: v1.current_offset_counts,
+            pot_offset_counts: v1.pot_offset_counts,
+            resistance_mohm: v1.resistance_mohm,
+            back_emf_uv_s_per_rad: v1.back_emf_uv_s_per_rad,
+            gear_friction_unm: v1.gear_friction_unm,
+            link_inertia_kg_mm2: v1.link_inertia_kg_mm2,
+            stiffness_mnm_per_rad: v1.stiffness_mnm_per_rad,
+            clutch_length_um: v1.clutch_length_um,
+            stiffness_uncertainty_permille: v1.stiffness_uncertainty_permille,
+            encoder_counts_per_turn: model::sensors::ENCODER_COUNTS,
+            pot_gain_ppm: GAIN_ONE_PPM,
+            current_gain_ppm: GAIN_ONE_PPM,
+            pot_error_centi: None,
+        })
+    }
 
     fn check(&self) -> Result<(), &'static str> {
         let sign = |s: i8| s == 1 || s == -1;
@@ -203,6 +339,19 @@ impl Record for Calibration {
         }
         if self.stiffness_uncertainty_permille > 1000 {
             return Err("stiffness uncertainty above 1000 ‰");
+        }
+        if !(16..=16384).contains(&self.encoder_counts_per_turn) {
+            return Err("encoder counts per turn outside 16..=16384");
+        }
+        let gains = GAIN_MIN_PPM..=GAIN_MAX_PPM;
+        if !gains.contains(&self.pot_gain_ppm) || !gains.contains(&self.current_gain_ppm) {
+            return Err("pot or current gain outside 0.5..=2");
+        }
+        if self
+            .pot_error_centi
+            .is_some_and(|t| t.iter().any(|&e| e > MAX_ERROR_CENTI))
+        {
+            return Err("pot error above 50 counts");
         }
         Ok(())
     }
@@ -435,5 +584,60 @@ impl Record for FaultEntry {
     /// Any code the protocol knows (checked while decoding) and any value are valid.
     fn check(&self) -> Result<(), &'static str> {
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_version_1_calibration_migrates_with_the_nominal_sensors() {
+        let v1 = CalibrationV1 {
+            motor_polarity: -1,
+            encoder_direction: 1,
+            pot_direction: -1,
+            current_offset_counts: -12,
+            pot_offset_counts: 7,
+            resistance_mohm: 8_300,
+            back_emf_uv_s_per_rad: 1_240_000,
+            gear_friction_unm: 20_000,
+            link_inertia_kg_mm2: 1_150,
+            stiffness_mnm_per_rad: Some(265_000),
+            clutch_length_um: Some(3_000),
+            stiffness_uncertainty_permille: 40,
+        };
+        let mut bytes = [0u8; 64];
+        bytes[0] = 1;
+        let n = postcard::to_slice(&v1, &mut bytes[1..]).unwrap().len();
+        let cal: Calibration = decode(&bytes[..1 + n]).unwrap();
+        assert_eq!(
+            (
+                cal.motor_polarity,
+                cal.pot_offset_counts,
+                cal.clutch_length_um
+            ),
+            (-1, 7, Some(3_000))
+        );
+        assert_eq!(cal.encoder_counts_per_turn, 4096);
+        assert_eq!(
+            (cal.pot_gain_ppm, cal.current_gain_ppm),
+            (1_000_000, 1_000_000)
+        );
+        assert_eq!(cal.pot_error_centi, None);
+        assert_eq!(cal.check(), Ok(()));
+        // Version 2 round-trips; version 3 is unknown.
+        let mut buf = [0u8; 128];
+        let n = encode(&cal, &mut buf).unwrap();
+        assert_eq!(buf[0], 2);
+        assert_eq!(decode::<Calibration>(&buf[..n]), Ok(cal));
+        buf[0] = 3;
+        assert!(matches!(
+            decode::<Calibration>(&buf[..n]),
+            Err(Rejection::UnknownVersion {
+                found: 3,
+                current: 2
+            })
+        ));
     }
 }

@@ -26,8 +26,9 @@ const SET_FORMAT: u8 = 1;
 /// gains (1 + 3 × u64 10) + limits (3 + 3 + 5 + 3 + 5 + 5) + timeout 5 (postcard varints).
 pub const CONFIG_MAX: usize = 1 + 6 + 5 + 31 + 24 + 5;
 /// Largest stored calibration record, bytes: version 1 + 3 signs (1 each) + 2 offsets
-/// (i16 varint 3) + 4 × u32 5 + 2 × `Option<u32>` 6 + u16 3.
-pub const CALIBRATION_MAX: usize = 1 + 3 + 6 + 20 + 12 + 3;
+/// (i16 varint 3) + 4 × u32 5 + 2 × `Option<u32>` 6 + u16 3, then (version 2) encoder
+/// counts (u16 3) + 2 gains (u32 5) + the pot error table (`Option<[u16; 16]>` 1 + 48).
+pub const CALIBRATION_MAX: usize = 1 + 3 + 6 + 20 + 12 + 3 + 3 + 10 + 49;
 /// Largest stored bus record, bytes: version 1 + ID 1 + baud 5 + 3 × u8 + 2 × u16 3, and
 /// the limits: 5 × u8 + 4 × u16 3.
 pub const BUS_MAX: usize = 1 + 1 + 5 + 3 + 6 + 5 + 12;
@@ -911,6 +912,10 @@ mod tests {
             stiffness_mnm_per_rad: Some(u32::MAX),
             clutch_length_um: Some(u32::MAX),
             stiffness_uncertainty_permille: u16::MAX,
+            encoder_counts_per_turn: u16::MAX,
+            pot_gain_ppm: u32::MAX,
+            current_gain_ppm: u32::MAX,
+            pot_error_centi: Some([u16::MAX; 16]),
         };
         let bus = BusSettings {
             id: u8::MAX,

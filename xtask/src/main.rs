@@ -21,6 +21,7 @@ mod fail_safe;
 mod firmware;
 mod flash;
 mod persistence;
+mod power_up;
 mod qemu;
 mod results;
 mod scenarios;
@@ -69,6 +70,10 @@ enum Task {
         /// Two runs with one file are a power cycle.
         #[arg(long, value_name = "FILE")]
         flash: Option<std::path::PathBuf>,
+        /// Makes the simulated actuator off-nominal (repeatable; the names of `vsa simulate
+        /// --plant`), e.g. power-up-angle=0.8: the host simulation gets the same.
+        #[arg(long, value_name = "NAME=VALUE", allow_hyphen_values = true)]
+        plant: Vec<String>,
     },
     /// Run every check: fmt, clippy, host tests, firmware builds, emulated self-tests.
     Test,
@@ -157,6 +162,7 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             seconds,
             idle,
             flash,
+            plant,
         } => {
             anyhow::ensure!(
                 board.qemu_machine().is_some(),
@@ -190,8 +196,15 @@ fn dispatch(task: Task) -> Result<ExitCode> {
                     client::qemu::flash_file_arg(f).map_err(|e| anyhow::anyhow!("--flash {e}"))?;
                 args.extend(["--flash".to_owned(), f]);
             }
+            // The one parser of the overrides; the firmware parses the same text again.
+            let overrides =
+                plant::overrides::Overrides::parse_all(plant.iter().map(String::as_str))
+                    .map_err(|e| anyhow::anyhow!("--plant: {e}"))?;
+            for o in &plant {
+                args.extend(["--plant".to_owned(), o.clone()]);
+            }
             let (code, outcome) = emulate(board, &elf, &args, test::wall_limit(60))?;
-            scenarios::print_host_comparison(id, &outcome)?;
+            scenarios::print_host_comparison(id, &overrides, &outcome)?;
             Ok(code)
         }
         Task::Test => Ok(if test::run()? {

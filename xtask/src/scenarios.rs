@@ -3,8 +3,9 @@
 //! emulated board reported of it (its `RESULT scenario` record).
 
 use anyhow::Result;
+use plant::overrides::Overrides;
 use plant::scenario::ScenarioId;
-use plant::scenario::{run_on_host, Summary};
+use plant::scenario::{run_on_host, run_on_host_with_plant, Summary};
 
 use crate::qemu::{RunOutcome, ICOUNT_SHIFT};
 use crate::results::{self, Record};
@@ -24,9 +25,15 @@ pub fn host_summary(id: ScenarioId) -> Result<Summary> {
     run_on_host(id, |_| {}).map_err(|e| anyhow::anyhow!("host simulation of {}: {e:?}", id.name()))
 }
 
-/// Prints the host simulation's hash of `id` and whether the emulated board's matches.
-pub fn print_host_comparison(id: ScenarioId, outcome: &RunOutcome) -> Result<()> {
-    let host = host_summary(id)?;
+/// Prints the host simulation's hash of `id` (on the actuator changed by `plant`, as the
+/// board's) and whether the emulated board's matches.
+pub fn print_host_comparison(
+    id: ScenarioId,
+    plant: &Overrides,
+    outcome: &RunOutcome,
+) -> Result<()> {
+    let host = run_on_host_with_plant(id, plant, |_| {})
+        .map_err(|e| anyhow::anyhow!("host simulation of {}: {e:?}", id.name()))?;
     let board =
         results::last(&outcome.lines, "scenario").and_then(|r| BoardSummary::from_record(&r));
     let verdict = match board {

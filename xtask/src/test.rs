@@ -162,6 +162,14 @@ pub fn run() -> Result<bool> {
     }
 
     for (board, elf) in elfs.iter().filter(|(b, _)| b.qemu_machine().is_some()) {
+        tally.record(
+            &format!("power-up anywhere on {}", board.feature()),
+            crate::power_up::check(*board, elf)
+                .map(|r| println!("[{} power-up] {r}", board.feature())),
+        );
+    }
+
+    for (board, elf) in elfs.iter().filter(|(b, _)| b.qemu_machine().is_some()) {
         let result = crate::persistence::run(*board, elf)
             .map(|r| println!("[{} settings store] {r}", board.feature()));
         tally.record(&format!("settings store on {}", board.feature()), result);

@@ -319,9 +319,14 @@ impl QemuTarget {
         for o in &self.plant {
             firmware_args.extend(["--plant".to_owned(), o.clone()]);
         }
-        QemuBoard::start(self.board, &elf, &firmware_args, sink)
-            .map(|(board, client)| (adopt(board), client))
-            .map_err(|e| CliError::runtime(e.to_string()))
+        let (board, mut client) = QemuBoard::start(self.board, &elf, &firmware_args, sink)
+            .map_err(|e| CliError::runtime(e.to_string()))?;
+        // A board just powered up aligns its encoder to the pot for 32 ms with the motor
+        // off and refuses an enable until then (docs/calibration.md): give it 100 ms.
+        client
+            .wait(Duration::from_millis(100))
+            .map_err(|e| CliError::runtime(e.to_string()))?;
+        Ok((adopt(board), client))
     }
 }
 

@@ -141,30 +141,37 @@ impl core::fmt::Display for CorrectionError {
 impl core::error::Error for CorrectionError {}
 
 /// The correction, derived for the per-tick path, and the encoder's unwrapping state.
-/// Every per-tick quantity is an `i32` (a 32×32→64 multiply and a shift per sensor).
+/// Every per-tick quantity is an `i32` in Q16 and each sensor costs one 32-bit multiply
+/// and an add: the offsets and the rounding are folded into constants when the
+/// correction is built or the boot window ends.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Corrector {
     cal: SensorCorrection,
     /// Raw encoder counts per turn and half of it.
     cpt: i32,
     half: i32,
-    /// Canonical encoder counts per raw count, signed, Q16 (|·| ≤ 256·2¹⁶).
+    /// Canonical encoder counts per raw count, signed, Q16: 4096/cpt·2¹⁶, so that
+    /// |d·scale| ≤ 2²⁷ for any change |d| ≤ cpt/2.
     enc_scale_q16: i32,
     /// Canonical pot counts per raw count, signed (direction / gain), Q16 (|·| ≤ 2¹⁷).
     pot_scale_q16: i32,
+    /// Canonical pot, Q16, of a raw 0, plus ½ (rounding): canonical = (raw·scale + this)
+    /// >> 16.
+    pot_bias_q16: i32,
     /// Canonical ADC counts per raw count, signed (polarity / gain), Q16 (|·| ≤ 2¹⁷).
     cur_scale_q16: i32,
+    /// Canonical ADC, Q16, of a raw 0, plus ½: from the offset in use.
+    cur_bias_q16: i32,
     /// Raw current ADC reading at 0 A in use, counts, Q16: measured at boot with the
     /// bridge off, else the configured one.
     cur_offset_q16: i32,
-    /// Raw encoder reading of the last tick (reduced to the turn), `-1` before the first.
+    /// Raw encoder reading of the last tick, `-1` before the first.
     enc_prev: i32,
-    /// Raw encoder counts turned since construction, unwrapped.
-    enc_turned: i32,
-    /// Canonical counts added to the scaled encoder (set by the boot alignment).
-    enc_offset: i32,
-    /// Boot alignment: ticks left, the sum of the canonical pot (Q16) and of the raw
-    /// current ADC (counts).
+    /// Canonical link encoder, Q16, modulo 2³² (only bits 16..28 are read: 4096 counts):
+    /// the scaled changes since construction plus the boot alignment's offset.
+    enc_q16: i32,
+    /// Boot alignment: ticks left, the sum of the encoder offsets the pot gives (Q16) and
+    /// of the raw current ADC (counts).
     boot_left: u16,
     boot_sum_q16: i64,
     boot_adc_sum: u32,
@@ -188,18 +195,12 @@ fn ratio_q16(num: i64, den: i64) -> i64 {
     (num * Q16 + den / 2).div_euclid(den)
 }
 
-/// `a·b / 2^shift`, rounded down: one 32×32→64 multiply (no overflow for the per-tick
-/// formats above).
-#[inline(always)]
-fn mul_shr(a: i32, b: i32, shift: u32) -> i64 {
-    (i64::from(a) * i64::from(b)) >> shift
-}
-
-/// `a·b / 2³²` rounded to nearest, for a Q16 value times a Q16 scale (|a| < 2²⁸,
-/// |b| ≤ 2¹⁷: the result fits in i32): the high word of one 32×32→64 multiply.
-#[inline(always)]
-fn round_q32(a: i32, b: i32) -> i32 {
-    ((i64::from(a) * i64::from(b) + (1 << 31)) >> 32) as i32
+/// The Q16 constant `k` with canonical = (raw·scale + k) >> 16 for a sensor whose raw
+/// `center_q16` maps to the canonical `canonical_center`, rounded to nearest
+/// (configuration time only).
+fn bias_q16(canonical_center: u16, center_q16: i32, scale_q16: i32) -> i32 {
+    let shifted = (i64::from(center_q16) * i64::from(scale_q16)) >> 16;
+    ((i64::from(canonical_center) << 16) - shifted + Q16 / 2) as i32
 }
 
 impl Corrector {
@@ -226,6 +227,14 @@ impl Corrector {
         }
         // Each scale is within ±2¹⁷ (gains ≥ 0.5) or ±2²⁴ (≥ 16 counts per turn).
         let scale = |sign: Sign, q: i64| (i64::from(sign.value()) * q) as i32;
+        let pot_scale_q16 = scale(
+            cal.pot_direction,
+            ratio_q16(Q16, i64::from(cal.pot_gain_q16)),
+        );
+        let cur_scale_q16 = scale(
+            cal.motor_polarity,
+            ratio_q16(Q16, i64::from(cal.current_gain_q16)),
+        );
         Ok(Corrector {
             cal: *cal,
             cpt: i32::from(cpt),
@@ -234,18 +243,13 @@ impl Corrector {
                 cal.encoder_direction,
                 ratio_q16(i64::from(ENCODER_COUNTS), i64::from(cpt)),
             ),
-            pot_scale_q16: scale(
-                cal.pot_direction,
-                ratio_q16(Q16, i64::from(cal.pot_gain_q16)),
-            ),
-            cur_scale_q16: scale(
-                cal.motor_polarity,
-                ratio_q16(Q16, i64::from(cal.current_gain_q16)),
-            ),
+            pot_scale_q16,
+            pot_bias_q16: bias_q16(POT_CENTER, cal.pot_center_q16, pot_scale_q16),
+            cur_scale_q16,
+            cur_bias_q16: bias_q16(ADC_MID, cal.current_offset_q16, cur_scale_q16),
             cur_offset_q16: cal.current_offset_q16,
             enc_prev: -1,
-            enc_turned: 0,
-            enc_offset: 0,
+            enc_q16: 0,
             boot_left: BOOT_TICKS,
             boot_sum_q16: 0,
             boot_adc_sum: 0,
@@ -287,24 +291,36 @@ impl Corrector {
         self.boot_sum_q16 = 0;
         self.boot_adc_sum = 0;
         self.enc_prev = 0;
-        self.enc_turned = 0;
-        self.enc_offset = 0;
-        self.cur_offset_q16 = self.cal.current_offset_q16;
+        self.enc_q16 = 0;
+        self.set_current_offset(self.cal.current_offset_q16);
     }
 
     /// Canonical pot reading, counts, Q16 (not rounded), of raw reading `raw`.
     #[must_use]
     pub fn pot_q16(&self, raw: u16) -> i64 {
         // A reading beyond the pot's counts (a driver's bug) counts as its last one.
-        let d = (i32::from(raw.min(POT_COUNTS - 1)) << 16) - self.cal.pot_center_q16;
-        (i64::from(POT_CENTER) << 16) + mul_shr(d, self.pot_scale_q16, 16)
+        let p = i32::from(raw.min(POT_COUNTS - 1));
+        i64::from(p * self.pot_scale_q16 + self.pot_bias_q16 - (1 << 15))
     }
 
-    /// Canonical link encoder counts turned since power-up (before the offset).
-    fn encoder_scaled(&self) -> i32 {
-        // |turned| < 2³¹ raw counts and the scale ≤ 2²⁴: the product fits in i64, the
-        // result in i32 for any physically possible travel.
-        mul_shr(self.enc_turned, self.enc_scale_q16, 16) as i32
+    /// Sets the current offset in use (raw counts at 0 A, Q16) and its bias.
+    fn set_current_offset(&mut self, offset_q16: i32) {
+        self.cur_offset_q16 = offset_q16;
+        self.cur_bias_q16 = bias_q16(ADC_MID, offset_q16, self.cur_scale_q16);
+    }
+
+    /// Unwraps this tick's raw encoder reading into the canonical encoder (Q16).
+    #[inline(always)]
+    fn unwrap_encoder(&mut self, now: i32) {
+        let mut d = now - self.enc_prev;
+        if d >= self.half {
+            d -= self.cpt;
+        } else if d < -self.half {
+            d += self.cpt;
+        }
+        // |d·scale| ≤ 2²⁷; the sum wraps modulo 2³², a multiple of the 2²⁸ read.
+        self.enc_q16 = self.enc_q16.wrapping_add(d * self.enc_scale_q16);
+        self.enc_prev = now;
     }
 
     /// The canonical readings of this tick's raw ones, `None` during the boot alignment
@@ -318,32 +334,20 @@ impl Corrector {
     /// `false` during the boot alignment (`out` untouched).
     #[inline(always)]
     pub fn correct(&mut self, raw: &TickInput, out: &mut TickInput) -> bool {
-        // Encoder: unwrap at the raw counts per turn (a reading is below it: the timer
-        // counts modulo it; one beyond it is a driver's fault, seen as a jump).
-        let now = i32::from(raw.link_encoder);
-        if self.enc_prev >= 0 {
-            let mut d = now - self.enc_prev;
-            if d >= self.half {
-                d -= self.cpt;
-            } else if d < -self.half {
-                d += self.cpt;
-            }
-            // |turned| < 2³¹: 500 000 turns of a link that moves ±2.5 rad.
-            self.enc_turned = self.enc_turned.wrapping_add(d);
-        }
-        self.enc_prev = now;
         if self.boot_left > 0 {
             self.boot_step(raw);
             return false;
         }
-        let enc = self.encoder_scaled().wrapping_add(self.enc_offset);
-        // The canonical encoder has 4096 counts per turn: the wrap is a mask.
-        out.link_encoder = (enc & (i32::from(ENCODER_COUNTS) - 1)) as u16;
+        // Encoder: unwrapped at the raw counts per turn (a reading is below it: the timer
+        // counts modulo it; one beyond it is a driver's fault, seen as a jump). The
+        // canonical encoder has 4096 counts per turn: the wrap is a mask.
+        self.unwrap_encoder(i32::from(raw.link_encoder));
+        out.link_encoder = ((self.enc_q16 >> 16) & (i32::from(ENCODER_COUNTS) - 1)) as u16;
         out.gear_pot = match raw.gear_pot {
             Some(p) => {
-                // Q16 × Q16 → Q32: the rounded counts are the high word.
-                let d = (i32::from(p.min(POT_COUNTS - 1)) << 16) - self.cal.pot_center_q16;
-                let c = i32::from(POT_CENTER) + round_q32(d, self.pot_scale_q16);
+                // p ≤ 1023, |scale| ≤ 2¹⁷: the product fits in i32.
+                let p = i32::from(p.min(POT_COUNTS - 1));
+                let c = (p * self.pot_scale_q16 + self.pot_bias_q16) >> 16;
                 Some(c.clamp(0, i32::from(POT_COUNTS) - 1) as u16)
             }
             None => None,
@@ -354,8 +358,8 @@ impl Corrector {
         } else if raw.current_adc > hi {
             ADC_COUNTS - 1
         } else {
-            let d = (i32::from(raw.current_adc) << 16) - self.cur_offset_q16;
-            let c = i32::from(ADC_MID) + round_q32(d, self.cur_scale_q16);
+            // raw < 4096, |scale| ≤ 2¹⁷: the product fits in i32.
+            let c = (i32::from(raw.current_adc) * self.cur_scale_q16 + self.cur_bias_q16) >> 16;
             // A valid raw reading stays off the rails (the supervisor's rails mean a
             // saturated or open sense, which the raw test above already decided).
             c.clamp(i32::from(lo), i32::from(hi)) as u16
@@ -364,14 +368,20 @@ impl Corrector {
         true
     }
 
-    /// One tick of the boot window (motor off): sums the encoder offset this tick's pot
-    /// gives and the current; at its end the alignment and the current offset.
+    /// One tick of the boot window (motor off): unwraps the encoder, sums the encoder
+    /// offset this tick's pot gives and the current; at its end the alignment and the
+    /// current offset.
     fn boot_step(&mut self, raw: &TickInput) {
+        let now = i32::from(raw.link_encoder);
+        if self.enc_prev < 0 {
+            self.enc_prev = now;
+        }
+        self.unwrap_encoder(now);
         self.boot_left -= 1;
-        let scaled = i64::from(self.encoder_scaled()) << 16;
         // The offset that makes the link angle the gear angle from this tick's pot,
         // canonical encoder counts, Q16: averaged per tick, so that a link that moves
         // during the window (falling under a load with the motor off) is aligned as well.
+        let scaled = i64::from(self.enc_q16);
         let offset_q16 = match raw.gear_pot {
             Some(p) => {
                 let from_center = self.pot_q16(p) - (i64::from(POT_CENTER) << 16);
@@ -383,19 +393,22 @@ impl Corrector {
         self.boot_sum_q16 = self.boot_sum_q16.saturating_add(offset_q16);
         self.boot_adc_sum = self.boot_adc_sum.saturating_add(u32::from(raw.current_adc));
         if self.boot_left == 0 {
-            // Mean offset, rounded to whole counts; the reading is the centre of its count.
+            // Mean offset, rounded to whole counts (the reading is the centre of its
+            // count), added to the canonical encoder.
             let mean_q16 = self.boot_sum_q16 / i64::from(BOOT_TICKS);
-            self.enc_offset = ((mean_q16 + Q16 / 2) >> 16) as i32;
+            let offset = ((mean_q16 + Q16 / 2) >> 16) as i32;
+            self.enc_q16 = self.enc_q16.wrapping_add(offset.wrapping_shl(16));
             // Mean raw current with the bridge off: 0 A, unless it sits at a rail (a dead
             // or unidirectional sense, which the supervisor then reports).
             let n = u32::from(BOOT_TICKS);
             let mean = self.boot_adc_sum / n;
             let rails = u32::from(self.cal.adc_min)..=u32::from(self.cal.adc_max);
-            self.cur_offset_q16 = if rails.contains(&mean) {
+            let offset_q16 = if rails.contains(&mean) {
                 ((u64::from(self.boot_adc_sum) << 16) / u64::from(n)) as i32
             } else {
                 self.cal.current_offset_q16
             };
+            self.set_current_offset(offset_q16);
         }
     }
 

@@ -57,6 +57,10 @@ pub fn sample_calibration() -> Calibration {
         stiffness_mnm_per_rad: Some(265_000),
         clutch_length_um: Some(3_000),
         stiffness_uncertainty_permille: 40,
+        encoder_counts_per_turn: 4000,
+        pot_gain_ppm: 1_021_000,
+        current_gain_ppm: 980_000,
+        pot_error_centi: Some([250; 16]),
     }
 }
 
@@ -155,6 +159,10 @@ pub fn calibration() -> impl Strategy<Value = Calibration> {
                 stiffness_mnm_per_rad: k,
                 clutch_length_um: l,
                 stiffness_uncertainty_permille: u,
+                encoder_counts_per_turn: 4096,
+                pot_gain_ppm: 1_000_000,
+                current_gain_ppm: 1_000_000,
+                pot_error_centi: None,
             },
         )
 }
