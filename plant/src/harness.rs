@@ -301,6 +301,8 @@ pub fn coupling_config(design: &Design, sched: &Schedule) -> Result<CouplingConf
 /// [`crate::metrics`]' (clock from the command, band ±1 count of the true link angle).
 #[derive(Clone, Debug)]
 pub struct Recorder {
+    /// The true frame's offset from the servo's, rad ([`frame_shift`]), set by the command.
+    frame_shift: f64,
     settle_ticks: u32,
     total: u32,
     rms_from_ticks: u32,
@@ -357,6 +359,7 @@ impl Recorder {
             count_span: Span::new(),
             unwrapped: 0,
             last_enc: first_encoder,
+            frame_shift: 0.0,
         }
     }
 
@@ -366,12 +369,14 @@ impl Recorder {
         self.total
     }
 
-    /// The command was given at tick `settle_ticks`: the true link angle then and the
-    /// command's final target, rad.
-    pub fn on_command(&mut self, start_angle: f64, target: f64) {
+    /// The command was given at tick `settle_ticks`: the true link angle then, the
+    /// command's final target and the servo's measured link angle then (both in the
+    /// servo's frame), rad.
+    pub fn on_command(&mut self, start_angle: f64, target: f64, measured: f64) {
+        self.frame_shift = frame_shift(measured, start_angle);
         self.step = StepResponse::new(
             start_angle,
-            target,
+            target + self.frame_shift,
             ENCODER_COUNT_RAD,
             self.step.steady_from_s(),
         );
@@ -391,7 +396,7 @@ impl Recorder {
         m.output_hash = fnv1a64(m.output_hash, &duty.to_le_bytes());
         let since = i64::from(tick) - i64::from(self.settle_ticks);
         let t_s = since_command_s(tick, self.settle_ticks);
-        let reference = fx32(out.reference.to_bits());
+        let reference = fx32(out.reference.to_bits()) + self.frame_shift;
 
         m.peak_stress_pa = m.peak_stress_pa.max(f64::from(st.beam_stress_pa).abs());
         m.peak_spring_torque_nm = m
@@ -500,16 +505,18 @@ pub fn allowable_stress_pa(design: &Design) -> f64 {
 /// What the H-bridge does when the servo turns the motor off (disabled or faulted).
 pub const OFF_BRIDGE: BridgeCommand = BridgeCommand::Coast;
 
-/// The servo's `target` (its frame, rad) in the plant's true frame, from the servo's
-/// measured link angle and the true one at the same tick: the sensor-correction layer set
-/// the servo's frame at power-up from the pot (within the free play and the pot's error,
-/// docs/calibration.md), a whole number of encoder counts away from the true frame, so
-/// the offset is rounded to whole counts. The step metrics thus measure how well the servo
-/// reaches what it was told, not the pot's accuracy.
+/// How far the plant's true frame is from the servo's, rad, from the servo's measured link
+/// angle and the true one at the same tick: the sensor-correction layer set the servo's
+/// frame at power-up from the pot (within the free play and the pot's error,
+/// docs/calibration.md), a whole number of encoder counts away from the true frame. The
+/// step and tracking metrics add it to the servo's target and reference, so they measure
+/// how well the servo reaches what it was told, not the pot's accuracy.
 #[must_use]
-pub fn target_in_true_frame(target: f64, measured: f64, true_angle: f64) -> f64 {
-    let shift = libm::round((true_angle - measured) / ENCODER_COUNT_RAD) * ENCODER_COUNT_RAD;
-    target + shift
+pub fn frame_shift(measured: f64, true_angle: f64) -> f64 {
+    // Compare the count each angle falls in (the servo reports the centre of its count,
+    // so rounding the difference would be a tie between two counts).
+    let count = |a: f64| libm::floor(a / ENCODER_COUNT_RAD);
+    (count(true_angle) - count(measured)) * ENCODER_COUNT_RAD
 }
 
 /// Runs `sc` — the servo (controller under the supervisor, enabled from the first tick)
@@ -586,10 +593,7 @@ where
                 .map_or(servo.controller().trajectory().target(), |c| c.target);
             let true_angle = plant.state().link_angle_rad;
             let measured = fx32(out.control.link_angle.to_bits());
-            rec.on_command(
-                true_angle,
-                target_in_true_frame(fx32(target.to_bits()), measured, true_angle),
-            );
+            rec.on_command(true_angle, fx32(target.to_bits()), measured);
         }
         let (cmd, duty) = match out.bridge {
             BridgeDemand::Drive(d) => (BridgeCommand::Drive(d), d),

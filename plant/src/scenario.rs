@@ -838,11 +838,8 @@ impl ScenarioRun {
                 let true_angle = self.plant.state().link_angle_rad;
                 rec.on_command(
                     true_angle,
-                    harness::target_in_true_frame(
-                        fx32(servo.controller().trajectory().target().to_bits()),
-                        fx32(out.control.link_angle.to_bits()),
-                        true_angle,
-                    ),
+                    fx32(servo.controller().trajectory().target().to_bits()),
+                    fx32(out.control.link_angle.to_bits()),
                 );
             }
         }
