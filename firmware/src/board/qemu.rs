@@ -65,7 +65,7 @@ impl Board for Qemu {
     const SYSCLK_HZ: u32 = 120_000_000;
 
     type Io = SimulatedIo;
-    type Hooks = Simulation;
+    type Hooks = &'static mut Simulation;
 
     /// Reads the run's options from the semihosting command line (`-semihosting-config
     /// arg=…`); the first argument is the program name.
