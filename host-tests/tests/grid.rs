@@ -8,7 +8,8 @@
 //! printed (`-- --nocapture`); any violation fails.
 //!
 //! `VSA_GRID_RUNS=N` (default 250 per grid, 500 in all) and `VSA_GRID_SEED=S` change the
-//! draw: the long run is `VSA_GRID_RUNS=5000 cargo test --release -p host-tests --test
+//! draw; `VSA_GRID_MAX_LOAD=T` keeps only the drawn cases with |load| ≤ T N·m (a fast subset
+//! while tuning, e.g. `0` for the runs without load): the long run is `VSA_GRID_RUNS=5000 cargo test --release -p host-tests --test
 //! grid -- --nocapture`. Limits not yet met are listed in [`OPEN`]: they are measured and
 //! printed but only enforced with `VSA_GRID_STRICT=1`.
 
@@ -46,9 +47,14 @@ fn sweep(label: &str, off_nominal: bool, seed_offset: u64) {
     let seed = env_or("VSA_GRID_SEED", 1) + seed_offset;
     let strict = std::env::var("VSA_GRID_STRICT").is_ok_and(|v| v == "1");
     let started = std::time::Instant::now();
+    let max_load = std::env::var("VSA_GRID_MAX_LOAD")
+        .ok()
+        .and_then(|v| v.parse::<f64>().ok())
+        .unwrap_or(f64::INFINITY);
     let outcomes: Vec<Outcome> = grid::cases(n, seed, off_nominal)
         .iter()
         .enumerate()
+        .filter(|(_, c)| c.load_nm.abs() <= max_load)
         .map(|(i, c)| grid::run(i, c))
         .collect();
     println!(
