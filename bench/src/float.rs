@@ -36,7 +36,7 @@ use core::f32::consts::PI;
 
 use model::control::schedule::{
     CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM, IMPACT_SPEED_FRACTION,
-    OBSERVER_RATIO, RESISTANCE_TOLERANCE,
+    OBSERVER_RATIO, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM, REST_ZONE_FREE_PLAYS,
 };
 use model::control::{Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
@@ -128,6 +128,9 @@ pub struct FloatSchedule {
     obs_beta: f32,
     obs_beta2: f32,
     float_load: f32,
+    rest_zone: f32,
+    rest_load: f32,
+    rest_torque: f32,
     kd: f32,
     alpha: f32,
     ff_vel: f32,
@@ -206,6 +209,9 @@ impl FloatSchedule {
             obs_beta: 2.0 * w_c / OBSERVER_RATIO as f32 * DT,
             obs_beta2: (w_c / OBSERVER_RATIO as f32) * (w_c / OBSERVER_RATIO as f32) * DT,
             float_load: i32f32(FLOAT_LOAD_NM.to_bits()) / c * dpv,
+            rest_zone: i32f32(REST_ZONE_FREE_PLAYS.to_bits()) * free_play,
+            rest_load: i32f32(REST_LOAD_NM.to_bits()) / c * dpv,
+            rest_torque: i32f32(REST_TORQUE_NM.to_bits()),
             kd,
             alpha: DT / (tau_f + DT),
             ff_vel: dpv * (ke + r * bv / kt),
@@ -487,6 +493,7 @@ pub struct FloatController {
     defl_valid: bool,
     theta_g: f32,
     theta_g_valid: bool,
+    rest_ticks: u8,
     w_bias: f32,
 }
 
@@ -516,6 +523,7 @@ impl FloatController {
             defl_valid: false,
             theta_g: 0.0,
             theta_g_valid: false,
+            rest_ticks: 0,
             w_bias: 0.0,
         }
     }
@@ -551,6 +559,7 @@ impl FloatController {
         self.duty_prev = 0;
         self.defl_valid = false;
         self.theta_g_valid = false;
+        self.rest_ticks = 0;
         self.w_bias = 0.0;
     }
 
@@ -630,6 +639,18 @@ impl FloatController {
         }
         let e_g = r.position + self.defl_prev - self.theta_g;
         let e_p = if floating { e_g } else { e };
+        // Rest without load: the gear stays where it is.
+        let calm = libm::fabsf(self.integ) < s.rest_load
+            && libm::fabsf(tau) < s.rest_torque
+            && r.velocity == 0.0
+            && r.acceleration == 0.0
+            && libm::fabsf(e_raw) <= s.rest_zone;
+        self.rest_ticks = if calm {
+            self.rest_ticks.saturating_add(1)
+        } else {
+            0
+        };
+        let resting = self.rest_ticks >= 20;
         self.w_ref += s.alpha * (r.velocity - self.w_ref);
 
         // --- feed-forward ---
@@ -647,7 +668,8 @@ impl FloatController {
         self.defl_valid = true;
 
         // --- PID ---
-        let u = u_ff + u_defl + s.kp * e_p + u_i + s.kd * (self.w_ref - self.w_fb);
+        let u_p = if resting { 0.0 } else { s.kp * e_p };
+        let u = u_ff + u_defl + u_p + u_i + s.kd * (self.w_ref - self.w_fb);
 
         // --- limits ---
         let emf = s.duty_per_w * w_gear;
@@ -694,7 +716,7 @@ impl FloatController {
         };
 
         // --- integrator ---
-        let inc = if in_count {
+        let inc = if in_count || resting {
             let slip = w_gear - r.velocity;
             if libm::fabsf(slip) <= s.w_deadband + s.w_bias_per_amp * libm::fabsf(current) {
                 0.0

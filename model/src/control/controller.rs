@@ -19,6 +19,8 @@ use crate::units::{Angle, Torque};
 /// One encoder count per tick (1000 ticks/s) as a velocity, 2π/4096 rad · 1000 /s, Q16
 /// (1.534 rad/s).
 const COUNT_PER_TICK_Q16: i32 = turn_fraction_bits(1000, ENCODER_COUNTS as u64, 16) as i32;
+/// Ticks in a row the rest hold's conditions must hold before it starts (20 ms).
+const REST_TICKS: u8 = 20;
 /// ADC counts → A in Q16: 1024 counts/A, so ×64.
 const ADC_TO_Q16_SHIFT: u32 = 6;
 
@@ -140,6 +142,8 @@ pub struct Controller {
     theta_g_valid: bool,
     /// The observer's velocity bias the complementary filter found, rad/s Q32.
     w_bias: i64,
+    /// Ticks in a row the rest hold's conditions have held.
+    rest_ticks: u8,
 }
 
 impl Controller {
@@ -173,6 +177,7 @@ impl Controller {
             theta_g: 0,
             theta_g_valid: false,
             w_bias: 0,
+            rest_ticks: 0,
         })
     }
 
@@ -240,6 +245,7 @@ impl Controller {
         self.defl_valid = false;
         self.theta_g_valid = false;
         self.w_bias = 0;
+        self.rest_ticks = 0;
     }
 
     /// One 1 kHz control step. Total: no panics, saturating arithmetic throughout.
@@ -335,6 +341,26 @@ impl Controller {
         }
 
         let e = if in_count { 0 } else { q32_to_q16(e_q32) };
+        // Rest without load (the integrator holds < `REST_LOAD_NM` and the torque estimate
+        // is below `REST_TORQUE_NM`, which a raw step's unwound integrator can hide): while the link is
+        // within 1.5·φ_b of a stationary reference the gear stays where it is (no position
+        // action; the integrator only holds the gear, as inside the reference's count): a
+        // gear that chases the link in the free play throws it from wall to wall, a still
+        // one only takes energy out of it at each contact. A load that turns up makes the
+        // gear creep, the hold integrates it and the integrator leaves the band.
+        let calm = q32_to_q16(self.integ).saturating_abs() < s.rest_load_q16
+            && tau.saturating_abs() < s.rest_torque_q16
+            && r.velocity_q16 == 0
+            && r.acceleration_q16 == 0
+            && q32_to_q16(e_q32).saturating_abs() <= s.rest_zone_q16;
+        // The conditions must hold for `REST_TICKS` in a row: a loaded link passes through
+        // them for a few ticks at the end of a raw step (the integrator unwinds).
+        self.rest_ticks = if calm {
+            self.rest_ticks.saturating_add(1)
+        } else {
+            0
+        };
+        let resting = self.rest_ticks >= REST_TICKS;
         // The position loop acts on the gear: where the gear should be (the reference plus
         // the deflection the coupling needs) minus the gear estimate. The link enters it
         // below ω_o only, so the link's rattle in the free play does not drive the motor.
@@ -378,7 +404,11 @@ impl Controller {
         // --- PID (derivative on the filtered link velocity) ---
         let u = u_ff
             .saturating_add(u_defl)
-            .saturating_add(s.kp.apply(if floating { e_g } else { e }))
+            .saturating_add(if resting {
+                0
+            } else {
+                s.kp.apply(if floating { e_g } else { e })
+            })
             .saturating_add(u_i)
             .saturating_add(s.kd.apply(self.w_ref.saturating_sub(self.w_fb)));
 
@@ -445,7 +475,7 @@ impl Controller {
         // cannot let the link creep out of the count. Its dead band is the observer's
         // resolution and bias bound (current offset, and R error × |i|): a hold that
         // chased the bias of a warm motor under load hunted.
-        let inc = if in_count {
+        let inc = if in_count || resting {
             let slip = w_gear.saturating_sub(r.velocity_q16);
             let dead_band = s
                 .w_deadband_q16
