@@ -19,6 +19,8 @@ impl Mutex for Alone<'_> {
 /// Attaches `storage` (if the board has one for this run) to `service`, applies the stored
 /// records if `apply` (not in a scripted scenario, which sets its own configuration), and
 /// logs what became of each record.
+// Not inlined: loading and preparing the stored settings needs frames init need not keep.
+#[inline(never)]
 pub fn boot(
     service: &mut Service,
     actuator: &mut Actuator,

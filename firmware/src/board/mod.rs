@@ -102,6 +102,29 @@ pub trait TickHooks {
     fn ends_run(event: &Self::Event) -> bool;
 }
 
+/// A board's hooks kept in a static and lent for the run (the emulated boards' simulation
+/// is 14 KiB: moved by value through init it took several copies of init's stack).
+impl<T: TickHooks> TickHooks for &'static mut T {
+    type Io = T::Io;
+    type Event = T::Event;
+
+    fn before_step(&mut self, io: &mut Self::Io, servo: &mut Servo) -> TickPlan {
+        (**self).before_step(io, servo)
+    }
+
+    fn after_step(&mut self, servo: &Servo, out: &TickOutput, late: Option<Fault>, io: &Self::Io) {
+        (**self).after_step(servo, out, late, io);
+    }
+
+    fn pop_event(&mut self) -> Option<Self::Event> {
+        (**self).pop_event()
+    }
+
+    fn ends_run(event: &Self::Event) -> bool {
+        T::ends_run(event)
+    }
+}
+
 /// What the start of a tick asks of the control loop.
 pub struct TickPlan {
     /// Busy-wait past the deadline in this tick (fault injection; emulated boards only).

@@ -106,6 +106,7 @@ enum SimulationKind {
 
 impl Simulation {
     /// Starts scenario `id`; also returns the servo configured for it and its service.
+    #[inline(never)] // its frame (the 14 KiB scenario, built and moved) ends with it
     pub fn new(id: ScenarioId) -> (Simulation, Servo, Service) {
         let run = match ScenarioRun::new(id) {
             Ok(r) => r,
@@ -131,6 +132,7 @@ impl Simulation {
     /// The simulation of a board serving the host protocol: the paper design at
     /// [`SERVED_CLUTCH_MM`], `load_mnm` mN·m hung on the link once the motor drives
     /// (see `plant::served`), the servo disabled.
+    #[inline(never)] // its frame (the 14 KiB scenario, built and moved) ends with it
     pub fn serve(load_mnm: i32) -> (Simulation, Servo, Service) {
         let design = Design::paper();
         let config = Config::paper(Length::from_int(SERVED_CLUTCH_MM));
