@@ -86,16 +86,13 @@ impl Board for Qemu {
 
     /// Brings up what the emulated board has, and the simulated actuator running `run`'s
     /// scenario (or serving the host).
-    // Not inlined: the simulation is built in this frame, which is gone when init goes on.
-    #[inline(never)]
     fn init(device: pac::Peripherals, run: &RunConfig) -> Parts<Self> {
         let prescaler = (QEMU_TIMER_INPUT_HZ / 1_000_000 - 1) as u16;
-        let (simulation, servo, service) = if run.serve {
+        let (hooks, servo, service) = if run.serve {
             Simulation::serve(run.serve_load_mnm)
         } else {
             Simulation::new(run.scenario)
         };
-        let hooks = place(simulation);
         let (serial_rx, serial_tx) = Serial::start(device.USART2, USART_BRR);
         Parts {
             clock: IndependentClock::start(device.TIM2, prescaler),
@@ -111,13 +108,6 @@ impl Board for Qemu {
     fn exit(passed: bool) -> ! {
         exit(passed)
     }
-}
-
-/// Moves the run's simulation into its static (once: init runs once) and lends it out.
-fn place(simulation: Simulation) -> &'static mut Simulation {
-    static mut SLOT: Option<Simulation> = None;
-    // SAFETY: only init calls this, once, before any task runs: no other reference exists.
-    unsafe { (*core::ptr::addr_of_mut!(SLOT)).insert(simulation) }
 }
 
 /// How a panic or HardFault ends on the emulated boards, once the bridge is off and the

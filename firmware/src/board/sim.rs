@@ -105,12 +105,23 @@ enum SimulationKind {
 }
 
 impl Simulation {
-    /// Starts scenario `id`; also returns the servo configured for it and its service.
-    #[inline(never)] // its frame (the 14 KiB scenario, built and moved) ends with it
-    pub fn new(id: ScenarioId) -> (Simulation, Servo, Service) {
-        let run = match ScenarioRun::new(id) {
-            Ok(r) => r,
-            Err(e) => defmt::panic!("scenario {=str} rejected: {}", id.name(), e),
+    /// Starts scenario `id` in the run's static simulation (init calls this or [`serve`]
+    /// once); also returns the servo configured for it and its service.
+    ///
+    /// [`serve`]: Simulation::serve
+    #[inline(never)] // its frame (the 14 KiB scenario, built in place) ends with it
+    pub fn new(id: ScenarioId) -> (&'static mut Simulation, Servo, Service) {
+        let sim = place(Simulation {
+            kind: SimulationKind::Scenario {
+                run: match ScenarioRun::new(id) {
+                    Ok(r) => r,
+                    Err(e) => defmt::panic!("scenario {=str} rejected: {}", id.name(), e),
+                },
+                actions: heapless::Vec::new(),
+            },
+        });
+        let SimulationKind::Scenario { run, .. } = &sim.kind else {
+            defmt::unreachable!()
         };
         let servo = match run.servo() {
             Ok(s) => s,
@@ -122,18 +133,14 @@ impl Simulation {
             None => defmt::panic!("scenario {=str} has no segment", id.name()),
         };
         let service = Service::new(*servo.design(), config, plan.supervision);
-        let kind = SimulationKind::Scenario {
-            run,
-            actions: heapless::Vec::new(),
-        };
-        (Simulation { kind }, servo, service)
+        (sim, servo, service)
     }
 
     /// The simulation of a board serving the host protocol: the paper design at
     /// [`SERVED_CLUTCH_MM`], `load_mnm` mN·m hung on the link once the motor drives
     /// (see `plant::served`), the servo disabled.
-    #[inline(never)] // its frame (the 14 KiB scenario, built and moved) ends with it
-    pub fn serve(load_mnm: i32) -> (Simulation, Servo, Service) {
+    #[inline(never)] // its frame ends with it, as [`Simulation::new`]'s
+    pub fn serve(load_mnm: i32) -> (&'static mut Simulation, Servo, Service) {
         let design = Design::paper();
         let config = Config::paper(Length::from_int(SERVED_CLUTCH_MM));
         let supervision = SupervisorConfig::DEFAULT;
@@ -145,13 +152,22 @@ impl Simulation {
             Ok(p) => p,
             Err(e) => defmt::panic!("served plant rejected: {}", e),
         };
-        let kind = SimulationKind::Served(plant);
         (
-            Simulation { kind },
+            place(Simulation {
+                kind: SimulationKind::Served(plant),
+            }),
             servo,
             Service::new(design, config, supervision),
         )
     }
+}
+
+/// Moves the run's simulation into its static and lends it out. Only init calls this
+/// (through [`Simulation::new`] or [`Simulation::serve`]), once.
+fn place(simulation: Simulation) -> &'static mut Simulation {
+    static mut SLOT: Option<Simulation> = None;
+    // SAFETY: called once, from init, before any task runs: no other reference exists.
+    unsafe { (*core::ptr::addr_of_mut!(SLOT)).insert(simulation) }
 }
 
 /// Clutch length a serving board starts at, mm.
