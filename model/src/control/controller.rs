@@ -327,10 +327,7 @@ impl Controller {
         // Under load the beams stay in contact on one side and the link error is the
         // better signal (an observer scale error adds up over a move); the gear loop is for
         // a link that floats in the free play.
-        // The integrator's torque share (duty, Q16): the same all through this step (it is
-        // updated at the end).
-        let u_i = q32_to_q16(self.integ);
-        let floating = u_i.saturating_abs() < s.float_load_q16;
+        let floating = q32_to_q16(self.integ).saturating_abs() < s.float_load_q16;
         if self.theta_g_valid && floating {
             let w = w_gear.saturating_sub(q32_to_q16(self.w_bias));
             self.theta_g = self.theta_g.saturating_add(s.dt.apply_wide(w));
@@ -343,21 +340,19 @@ impl Controller {
             self.theta_g_valid = true;
         }
 
-        let e_full = q32_to_q16(e_q32);
-        let e = if in_count { 0 } else { e_full };
+        let e = if in_count { 0 } else { q32_to_q16(e_q32) };
         // Rest without load (the integrator holds < `REST_LOAD_NM` and the torque estimate
-        // is below `REST_TORQUE_NM`, which a raw step's unwound integrator can hide): while
-        // the link is within 1.5·φ_b of a stationary reference the gear stays where it is
-        // (no position action; the integrator only holds the gear, as inside the
-        // reference's count): a gear that chases the link in the free play throws it from
-        // wall to wall, a still one only takes energy out of it at each contact. A load
-        // that turns up makes the gear creep, the hold integrates it and the integrator
-        // leaves the band.
-        let calm = u_i.saturating_abs() < s.rest_load_q16
+        // is below `REST_TORQUE_NM`, which a raw step's unwound integrator can hide): while the link is
+        // within 1.5·φ_b of a stationary reference the gear stays where it is (no position
+        // action; the integrator only holds the gear, as inside the reference's count): a
+        // gear that chases the link in the free play throws it from wall to wall, a still
+        // one only takes energy out of it at each contact. A load that turns up makes the
+        // gear creep, the hold integrates it and the integrator leaves the band.
+        let calm = q32_to_q16(self.integ).saturating_abs() < s.rest_load_q16
             && tau.saturating_abs() < s.rest_torque_q16
             && r.velocity_q16 == 0
             && r.acceleration_q16 == 0
-            && e_full.saturating_abs() <= s.rest_zone_q16;
+            && q32_to_q16(e_q32).saturating_abs() <= s.rest_zone_q16;
         // The conditions must hold for `REST_TICKS` in a row: a loaded link passes through
         // them for a few ticks at the end of a raw step (the integrator unwinds).
         self.rest_ticks = if calm {
@@ -388,6 +383,7 @@ impl Controller {
             .vel
             .apply(r.velocity_q16)
             .saturating_add(self.ff.acc.apply(r.acceleration_q16));
+        let u_i = q32_to_q16(self.integ);
         let tau_ref = s
             .j_link
             .apply(r.acceleration_q16)
