@@ -15,6 +15,10 @@ use crate::{Error, Result, HEARTBEAT_INTERVAL};
 /// Default reply timeout, 1 s.
 pub const DEFAULT_TIMEOUT: Duration = Duration::from_secs(1);
 
+/// How long [`Client::enable`] asks again a board that answers `busy` (its 32 ms boot
+/// window, with room for a loaded host and an emulated board's start).
+pub const ENABLE_BUSY_WAIT: Duration = Duration::from_millis(500);
+
 /// Default capacity of the telemetry buffer, samples (20 s at 500 Hz).
 pub const DEFAULT_TELEMETRY_CAPACITY: usize = 10_000;
 
@@ -528,12 +532,26 @@ impl Client {
     }
 
     /// [`Request::Enable`]: motor on, holding the current position (refused while a fault
-    /// is latched).
+    /// is latched). A board that answers `busy` (its boot window: the encoder is being
+    /// aligned to the pot with the motor off, docs/calibration.md) is asked again, 1 ms
+    /// apart, for up to [`ENABLE_BUSY_WAIT`].
     ///
     /// # Errors
-    /// As [`Client::ping`].
+    /// As [`Client::ping`]; the last refusal if the board is still busy after the wait (a
+    /// calibration running).
     pub fn enable(&mut self) -> Result<()> {
-        self.request_ok(Request::Enable)
+        let start = Instant::now();
+        loop {
+            match self.request_ok(Request::Enable) {
+                Err(Error::Refused {
+                    code: ErrorCode::Busy,
+                    ..
+                }) if start.elapsed() < ENABLE_BUSY_WAIT => {
+                    self.wait(Duration::from_millis(1))?;
+                }
+                other => return other,
+            }
+        }
     }
 
     /// [`Request::Disable`]: motor off.

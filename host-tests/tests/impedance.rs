@@ -3,7 +3,7 @@
 //! several virtual stiffnesses and dampings, static external torques of both signs, nominal
 //! and off-nominal actuators (`plant::overrides`, which the controller does not see).
 //!
-//! Each run holds 0.5 s at 0 rad with the external torque already on the link, then gives
+//! Each run holds 0.5 s at 0 rad, the external torque put on at the end of the boot window, then gives
 //! the impedance command (target 0.2 rad) and runs 2 s. The oracle is the virtual spring's
 //! static deflection (τ_ext + τ_ff)/k_v from the numbers given, and the physical stiffness
 //! for the refusal is the f64 oracle's k(L) (`host_tests::oracle`). Figures: the mean true
@@ -12,6 +12,7 @@
 
 use host_tests::oracle;
 use host_tests::sim::{self, COUNT_RAD};
+use model::calibration::correction::BOOT_TICKS;
 use model::control::{ImpedanceCommand, ImpedanceError};
 use model::servo::ServoError;
 use model::{Angle, Stiffness, Torque};
@@ -27,6 +28,13 @@ const TARGET_RAD: f64 = 0.2;
 const K_V_MIN: f64 = 10.0;
 /// The static external torques, N·m.
 const LOADS: [f64; 4] = [0.25, -0.25, 0.15, -0.15];
+/// Tick of the run at which the external torque is put on the link: the first after the
+/// boot window, as the servo starts holding. Put on later, into a hold already at rest, the
+/// link crosses the free play and hits the beams: with `resistance=x0.8` at 4 mm and
+/// −0.15 N·m that impact reached 1.09 σ_allow (tick 60) and 1.20 σ_allow (tick 80), the
+/// position hold's free-play impacts (docs/design.md §11, "Not reached yet"), not the
+/// impedance command's.
+const LOAD_AFTER_BOOT_TICKS: i32 = BOOT_TICKS as i32 + 1;
 /// Relative tolerance of the deflection.
 const REL_TOL: f64 = 0.05;
 
@@ -54,11 +62,20 @@ struct Outcome {
     error_counts: f64,
     stress_ratio: f64,
     faults: bool,
+    first_fault: Option<model::supervisor::Fault>,
     span_counts: i32,
 }
 
 fn run(c: &Case) -> Outcome {
-    let mut sc: Scenario = sim::scenario(c.l_mm, model::Command::Hold, c.load as f32);
+    // The torque arrives after power-up: with it on the link
+    // during the boot window the pot's alignment takes the beams' deflection then as zero,
+    // and the torque estimate carries k times that (docs/calibration.md, "The link's
+    // absolute angle at start-up").
+    let mut sc: Scenario = sim::scenario(c.l_mm, model::Command::Hold, 0.0);
+    sc.disturbance = Some(harness::Disturbance {
+        after_command_ticks: LOAD_AFTER_BOOT_TICKS - sc.settle_ticks as i32,
+        torque_nm: c.load as f32,
+    });
     sc.impedance = Some(command(c.k_v, c.d_v, c.ff));
     if !c.plant.is_empty() {
         sc.plant = Overrides::parse_all(c.plant.split(' ')).expect("overrides");
@@ -72,7 +89,9 @@ fn run(c: &Case) -> Outcome {
         }
     })
     .expect("accepted");
-    let deflection = sum / n - TARGET_RAD;
+    // From the target in the true frame: the servo's frame is set at power-up from the pot
+    // (`harness::frame_shift`), a few counts from the true one under a load.
+    let deflection = sum / n - m.target_rad;
     let want = (c.load + c.ff) / c.k_v;
     Outcome {
         deflection,
@@ -80,6 +99,7 @@ fn run(c: &Case) -> Outcome {
         error_counts: (deflection - want).abs() / COUNT_RAD,
         stress_ratio: m.peak_stress_ratio,
         faults: !m.faults.is_empty(),
+        first_fault: m.first_fault,
         span_counts: m.steady_count_span,
     }
 }
@@ -117,7 +137,11 @@ impl Summary {
             100.0 * err / o.want.abs().max(1e-12),
             o.span_counts,
             o.stress_ratio,
-            if o.faults { ", FAULT" } else { "" }
+            if o.faults {
+                format!(", FAULT {:?}", o.first_fault)
+            } else {
+                String::new()
+            }
         );
         self.runs += 1;
         if err / tol > self.worst_error.0 {

@@ -568,8 +568,9 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
                 return Err(ErrorCode::Busy);
             }
             // Not before the encoder is aligned to the pot: a command would start from 0.
+            // Busy, not refused: the window ends by itself within 32 ms.
             if !a.pipeline.aligned() {
-                return Err(ErrorCode::NotAllowed);
+                return Err(ErrorCode::Busy);
             }
             a.servo.enable().map_err(refused)
         })

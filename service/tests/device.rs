@@ -451,3 +451,30 @@ fn bad_requests_change_nothing_but_the_error_count() {
         before
     );
 }
+
+#[test]
+fn enable_is_busy_during_the_boot_window_then_accepted() {
+    let design = Design::paper();
+    let config = Config::paper(Length::from_int(3));
+    let sup = SupervisorConfig::DEFAULT;
+    let mut b = Board::new();
+    b.actuator = Cell(Actuator::new(Servo::new(&design, &config, &sup).unwrap()));
+    let input = TickInput {
+        link_encoder: 0,
+        gear_pot: Some(512),
+        current_adc: 2048,
+        read_error: None,
+    };
+    // The 32-tick window (model::calibration::correction::BOOT_TICKS), counted here on
+    // its own: busy on every tick of it, the state still disabled.
+    for tick in 0..32 {
+        assert_eq!(
+            b.ask(Request::Enable),
+            Reply::Error(ErrorCode::Busy),
+            "tick {tick}"
+        );
+        let _ = b.actuator.0.tick(&input);
+    }
+    assert_eq!(b.ask(Request::Enable), Reply::Ok);
+    assert_eq!(b.status().state, State::Enabled);
+}
