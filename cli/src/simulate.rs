@@ -498,10 +498,11 @@ pub fn run(args: &SimulateArgs) -> Result<(), String> {
         let json = metrics_json(&m, period_s.is_some());
         match &imp {
             // The impedance figures: the deflection at rest and (load + τ_ff)/k_v.
-            Some((c, per_nm, ff)) => println!(
+            Some((_, per_nm, ff)) => println!(
                 "{},\"deflection_rad\":{},\"expected_deflection_rad\":{}}}",
                 json.trim_end_matches('}'),
-                rest_rad - c.target.get().to_num::<f64>(),
+                // In the servo's frame: the target as the true frame has it (`Metrics::target_rad`).
+                rest_rad - m.target_rad,
                 load * per_nm + ff
             ),
             None => println!("{json}"),
@@ -516,8 +517,9 @@ pub fn run(args: &SimulateArgs) -> Result<(), String> {
         sched.torque_limit().get().to_num::<f64>()
     );
     let ms = |v: Option<f64>| v.map_or("–".to_string(), |t| format!("{:.0} ms", t * 1e3));
-    if let Some((c, per_nm, ff)) = &imp {
-        let target = c.target.get().to_num::<f64>();
+    if let Some((_, per_nm, ff)) = &imp {
+        // In the servo's frame, as above.
+        let target = m.target_rad;
         println!(
             "deflection at rest {:+.5} rad ({:+.2} counts) from the target; \
              (load + τ_ff)/k_v = {:+.5} rad",
