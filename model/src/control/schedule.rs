@@ -139,7 +139,9 @@ pub struct Schedule {
     pub(crate) torque_per_duty: Gain,
     /// ‰ per A of current: (1000/V)·R.
     pub(crate) duty_per_amp: Gain,
-    /// Back-EMF observer: ω_g = duty·w_per_duty − (adc − mid)·w_per_count (rad/s).
+    /// Back-EMF observer: ω_g = duty·w_per_duty − (adc − mid)·w_per_count (rad/s), Q32;
+    /// the validated motor ranges bound them to [0, 2³⁶) and [0, 2³⁹) (the controller's
+    /// products rely on it).
     pub(crate) w_per_duty_q32: i64,
     pub(crate) w_per_count_q32: i64,
     /// ‰ per rad/s of gear velocity (back-EMF): (1000/V)·k_e.
@@ -151,8 +153,14 @@ pub struct Schedule {
     pub(crate) bv: Gain,
     /// Deflection weight of the torque blend w = σ_i²/(σ_i² + σ_d²), Q16 (0 … 1).
     pub(crate) w_defl: Gain,
+    /// `w_defl` applied to 1, Q16: 0 when the blend ignores the pot (derived once here,
+    /// not per tick).
+    pub(crate) w_defl_q16: i32,
     /// Current limit (A, Q16) and whether it comes from the beam capacity.
     pub(crate) i_lim_q16: i32,
+    /// The current limit in duty, ‰ Q16: `duty_per_amp` applied to `i_lim_q16` (derived
+    /// once here, not per tick).
+    pub(crate) i_lim_duty_q16: i32,
     pub(crate) i_lim_from_beams: bool,
     /// Coupling torque limit τ_lim = margin·τ_cap (N·m, Q16).
     pub(crate) tau_lim_q16: i32,
@@ -326,6 +334,9 @@ impl Schedule {
         let (tau_lim, i_lim, i_lim_from_beams) = current_limit(&p, &setting, lim)?;
         let w_defl = deflection_weight(k, cfg.sensors.current_torque_sigma)?;
         let free_play = wide(setting.free_play().get());
+        let w_defl = to_gain(w_defl)?;
+        let i_lim_q16 = to_q16(i_lim)?;
+        let duty_per_amp = to_gain(mul(duty_per_volt, r)?)?;
         Ok(Schedule {
             setting,
             stiffness,
@@ -390,15 +401,17 @@ impl Schedule {
             free_play_q16: to_q16(free_play)?,
             fp_slope: to_gain(div(free_play, wide(FREE_PLAY_SWITCH_NM))?)?,
             torque_per_duty: to_gain(div(p.torque_per_volt, duty_per_volt)?)?,
-            duty_per_amp: to_gain(mul(duty_per_volt, r)?)?,
+            duty_per_amp,
             w_per_duty_q32: to_q32(div(div(p.supply, ticks_per_s)?, ke)?)?,
             w_per_count_q32: to_q32(div(div(r, ke)?, I64F64::from_num(ADC_COUNTS_PER_A))?)?,
             duty_per_w: to_gain(mul(duty_per_volt, ke)?)?,
             kt: to_gain(kt)?,
             gear_inertia_per_dt: to_gain(mul(p.j_gear, ticks_per_s)?)?,
             bv: to_gain(bv)?,
-            w_defl: to_gain(w_defl)?,
-            i_lim_q16: to_q16(i_lim)?,
+            w_defl,
+            w_defl_q16: w_defl.apply(Q16_ONE),
+            i_lim_q16,
+            i_lim_duty_q16: duty_per_amp.apply(i_lim_q16),
             i_lim_from_beams,
             tau_lim_q16: to_q16(tau_lim)?,
             duty_lim_q16: i32::from(lim.max_duty) * Q16_ONE,
@@ -449,7 +462,7 @@ impl Schedule {
     /// Weight of the deflection-based torque estimate in the blend (0 … 1).
     #[must_use]
     pub fn deflection_weight(&self) -> I32F32 {
-        I32F32::from_bits(i64::from(self.w_defl.apply(Q16_ONE)) << 16)
+        I32F32::from_bits(i64::from(self.w_defl_q16) << 16)
     }
 
     /// The output free play φ_b the compensation uses.
