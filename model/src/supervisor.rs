@@ -22,9 +22,15 @@
 //! instead of τ_cap(L).
 //!
 //! Deflection envelope: φ_b + θ_cap(L) + one pot count + half an encoder count (the two
-//! quantisations) + the pot centre's calibration tolerance (`pot_tolerance_counts`, what
-//! calibration leaves, docs/design.md §9): any larger measured deflection means the beams are
-//! bent beyond their stress capacity or a sensor lies.
+//! quantisations) + the pot's error: any larger measured deflection means the beams are
+//! bent beyond their stress capacity or a sensor lies. The pot's error is the fixed
+//! `pot_tolerance_counts` (the pot centre's calibration tolerance, docs/design.md §9), or,
+//! with the table calibration measured (`pot_error`, [`PotErrorTable`],
+//! docs/calibration.md), per sixteenth of the pot's track: the table's entry for the bin of
+//! this tick's reading plus its largest entry (the encoder was aligned to the pot at
+//! power-up, wherever the link was, so that reading's error is in the link angle). The 16
+//! envelopes are computed with the thresholds; per tick the check reads the one of the
+//! reading's bin (a shift and an index).
 //!
 //! The torque estimate is a model output (k_t·i minus the gear's inertial torque from the
 //! back-EMF observer): a duty jump with an imperfect resistance or back-EMF constant gives
@@ -35,6 +41,7 @@
 //! Every threshold is converted to the per-tick formats when the supervisor is built
 //! ([`Supervisor::new`]), never per tick; the per-tick work is compares and one multiply.
 
+use crate::calibration::pot_error::{PotErrorTable, POT_ERROR_BINS};
 use crate::clutch_monitor::{ClutchLimits, ClutchMonitor};
 use crate::control::{Output, Schedule};
 use crate::sensors::{
@@ -198,6 +205,10 @@ pub struct SupervisorConfig {
     /// that longer length. 0 turns the monitor's capacity off (τ_cap(L) as configured).
     /// Default 0.
     pub clutch_tolerance: crate::units::Length,
+    /// The pot's error per sixteenth of its track as calibration measured it
+    /// ([`PotErrorTable`]); replaces `pot_tolerance_counts` in the deflection envelope,
+    /// bin by bin (module docs). `None` (default): the fixed tolerance.
+    pub pot_error: Option<PotErrorTable>,
 }
 
 impl SupervisorConfig {
@@ -215,6 +226,7 @@ impl SupervisorConfig {
         pot_tolerance_counts: 3,
         overload_ticks: 2,
         clutch_tolerance: crate::units::Length::from_int(0),
+        pot_error: None,
     };
 }
 
@@ -246,6 +258,9 @@ pub enum SupervisorError {
     OverloadTicks,
     /// `clutch_tolerance` not in [0, 5] mm.
     ClutchTolerance,
+    /// A `pot_error` entry above
+    /// [`MAX_ERROR_CENTI`](crate::calibration::pot_error::MAX_ERROR_CENTI) (50 pot counts).
+    PotErrorTable,
 }
 
 impl core::fmt::Display for SupervisorError {
@@ -260,6 +275,7 @@ impl core::fmt::Display for SupervisorError {
             SupervisorError::PotTolerance => "pot tolerance above 100 counts",
             SupervisorError::OverloadTicks => "overload ticks outside 1..=10",
             SupervisorError::ClutchTolerance => "clutch tolerance outside [0, 5] mm",
+            SupervisorError::PotErrorTable => "pot error table entry above 50 counts",
         })
     }
 }
@@ -290,8 +306,6 @@ struct Thresholds {
     stuck_ticks: u16,
     /// τ_cap(L), I32F32 bits.
     torque_cap: i64,
-    /// Deflection envelope, I32F32 bits (rad).
-    envelope: i64,
     pot_center: i32,
     position_min: i64,
     position_max: i64,
@@ -324,6 +338,10 @@ pub struct Supervisor {
     /// the thresholds, which the check copies each tick).
     clutch: ClutchMonitor,
     clutch_lim: Option<ClutchLimits>,
+    /// Deflection envelope per bin of the canonical pot reading
+    /// ([`PotErrorTable::bin`]), I32F32 bits (rad): all equal without a pot error table.
+    /// Kept out of the thresholds (which the check copies each tick): one entry is read.
+    envelopes: [i64; POT_ERROR_BINS],
 }
 
 impl Supervisor {
@@ -336,6 +354,7 @@ impl Supervisor {
         let th = Self::thresholds(cfg, sched)?;
         Ok(Supervisor {
             clutch_lim: Self::clutch_limits(cfg, sched),
+            envelopes: Self::envelopes(cfg, sched),
             cfg: *cfg,
             th,
             latched: FaultSet(0),
@@ -365,6 +384,7 @@ impl Supervisor {
         self.cfg = *cfg;
         self.clutch = ClutchMonitor::new();
         self.clutch_lim = Self::clutch_limits(cfg, sched);
+        self.envelopes = Self::envelopes(cfg, sched);
         Ok(())
     }
 
@@ -408,16 +428,13 @@ impl Supervisor {
         if !(0..=5 * Q32_ONE).contains(&tol) {
             return Err(SupervisorError::ClutchTolerance);
         }
+        if cfg.pot_error.is_some_and(|t| !t.is_valid()) {
+            return Err(SupervisorError::PotErrorTable);
+        }
         // Counts per tick at max speed: speed[rad/s]·1e-3 s / count, rounded up, + 1.
         let per_tick = speed / 1000;
         let max_jump_counts = (per_tick + COUNT_Q32 - 1) / COUNT_Q32 + 1;
         let setting = sched.setting();
-        let envelope = sched
-            .free_play()
-            .to_bits()
-            .saturating_add(setting.deflection_capacity().to_bits())
-            .saturating_add(POT_COUNT_Q32 * (1 + i64::from(cfg.pot_tolerance_counts)))
-            .saturating_add(COUNT_Q32 / 2);
         Ok(Thresholds {
             // |adc − mid| > trip·1024, rounded down: trips at or above the trip current.
             trip_adc: ((trip * i64::from(ADC_COUNTS_PER_A)) >> 32) as i32,
@@ -427,13 +444,39 @@ impl Supervisor {
             max_pot_jump: i32::from(cfg.max_pot_jump),
             stuck_ticks: cfg.stuck_ticks,
             torque_cap: setting.torque_capacity().to_bits(),
-            envelope,
             pot_center: sched.pot_center,
             position_min: cfg.position_min.to_bits(),
             position_max: cfg.position_max.to_bits(),
             timeout_ticks: cfg.command_timeout_ms,
             overload_ticks: cfg.overload_ticks,
         })
+    }
+
+    /// The deflection envelope of each pot bin (module docs), I32F32 bits. `cfg` is
+    /// valid. Without a table every bin has φ_b + θ_cap + (1 + `pot_tolerance_counts`)
+    /// pot counts + half an encoder count; with one, bin b has φ_b + θ_cap + one pot
+    /// count + half an encoder count + the table's entry b (the reading's error here) +
+    /// its largest entry (the error of the reading the encoder was aligned to at power-up,
+    /// anywhere on the track).
+    fn envelopes(cfg: &SupervisorConfig, sched: &Schedule) -> [i64; POT_ERROR_BINS] {
+        let base = sched
+            .free_play()
+            .to_bits()
+            .saturating_add(sched.setting().deflection_capacity().to_bits())
+            .saturating_add(POT_COUNT_Q32)
+            .saturating_add(COUNT_Q32 / 2);
+        let counts = |centi: u16| POT_COUNT_Q32 * i64::from(centi) / 100;
+        match cfg.pot_error {
+            None => {
+                [base.saturating_add(counts(cfg.pot_tolerance_counts.saturating_mul(100)));
+                    POT_ERROR_BINS]
+            }
+            Some(t) => {
+                let aligned = counts(t.max_centi());
+                t.centi
+                    .map(|e| base.saturating_add(aligned).saturating_add(counts(e)))
+            }
+        }
     }
 
     /// Takes the configuration and thresholds of `other` (built for another schedule),
@@ -443,6 +486,7 @@ impl Supervisor {
         self.th = other.th;
         self.clutch = ClutchMonitor::new();
         self.clutch_lim = other.clutch_lim;
+        self.envelopes = other.envelopes;
     }
 
     /// The configuration in use.
@@ -472,10 +516,18 @@ impl Supervisor {
         self.clutch_lim.map(|_| self.clutch.state())
     }
 
-    /// Deflection envelope (φ_b + θ_cap + quantisation) the overload and stuck checks use.
+    /// Deflection envelope (φ_b + θ_cap + the pot's error + quantisation) the overload and
+    /// stuck checks use at canonical pot reading `pot`.
+    #[must_use]
+    pub fn deflection_envelope_at(&self, pot: u16) -> Angle {
+        Angle::from_bits(self.envelopes[PotErrorTable::bin(pot)])
+    }
+
+    /// The smallest deflection envelope over the pot's track (the only one without a pot
+    /// error table).
     #[must_use]
     pub fn deflection_envelope(&self) -> Angle {
-        Angle::from_bits(self.th.envelope)
+        Angle::from_bits(self.envelopes.iter().copied().min().unwrap_or(0))
     }
 
     /// Largest plausible link-encoder change per tick, counts.
@@ -642,7 +694,7 @@ impl Supervisor {
             if let Some(permille) = mismatch {
                 note(self, FaultCode::ClutchMismatch, permille);
             }
-            if phi.saturating_abs() > th.envelope {
+            if phi.saturating_abs() > self.envelopes[PotErrorTable::bin(pot)] {
                 let tau = out.torque_estimate.to_bits().saturating_abs();
                 let micro = to_micro(phi);
                 if self.unchanged_ticks >= th.stuck_ticks && tau < th.torque_cap / 2 {

@@ -2,8 +2,8 @@
 //! [`protocol::Request::Calibrate`], one step per control tick from the disabled state
 //! ([`Actuator::control`]), its result applied and stored by the command task
 //! ([`Service::finish_calibration`]) and the stored one applied at boot (the controller's
-//! motor model and link inertia, and the sensor correction installed in the actuator's
-//! correction layer, `Actuator::pipeline`).
+//! motor model and link inertia, the supervisor's pot error table, and the sensor
+//! correction installed in the actuator's correction layer, `Actuator::pipeline`).
 //!
 //! The supervisor stays armed throughout: the servo ticks as when disabled (its controller
 //! tracks the sensors, its bridge demand off) behind the sensor-correction layer in force
@@ -146,7 +146,7 @@ fn record(r: &CalibrationResult) -> Calibration {
         encoder_counts_per_turn: c.encoder_counts_per_turn,
         pot_gain_ppm: q16_ppm(c.pot_gain_q16),
         current_gain_ppm: q16_ppm(c.current_gain_q16),
-        pot_error_centi: None,
+        pot_error_centi: Some(r.pot_error.centi),
     }
 }
 
@@ -240,7 +240,8 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
     }
 
     /// Puts `cal` in force: the motor's resistance and back-EMF and the link inertia for
-    /// the controller, the sensor correction (`correction`, else the one `cal` gives).
+    /// the controller, its pot error table for the supervisor, the sensor correction
+    /// (`correction`, else the one `cal` gives).
     pub(crate) fn apply_calibration(
         &mut self,
         cal: &Calibration,
@@ -260,7 +261,8 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         // (the encoder aligned to the pot again in the new frame, motor off).
         model::calibration::correction::Corrector::new(&correction)
             .map_err(|_| ErrorCode::OutOfRange)?;
-        self.reconfigure(config, self.service.supervision)?;
+        let supervision = crate::correction::with_pot_error(cal, &self.service.supervision);
+        self.reconfigure(config, supervision)?;
         self.actuator
             .lock(|a| a.pipeline.install(&correction))
             .map_err(|_| ErrorCode::OutOfRange)
