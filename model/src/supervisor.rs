@@ -889,6 +889,107 @@ mod tests {
     }
 
     #[test]
+    fn without_a_pot_error_table_every_bin_has_the_fixed_envelope() {
+        let (s, _) = sup(3);
+        let env = s.deflection_envelope();
+        for pot in (0..1024).step_by(7) {
+            assert_eq!(s.deflection_envelope_at(pot), env);
+        }
+    }
+
+    /// A table with bin 4 at 10 counts (the largest) and bin 10 at 1 count.
+    fn with_table() -> SupervisorConfig {
+        let mut t = PotErrorTable {
+            centi: [250; POT_ERROR_BINS],
+        };
+        t.centi[4] = 1000;
+        t.centi[10] = 100;
+        SupervisorConfig {
+            pot_error: Some(t),
+            ..SupervisorConfig::DEFAULT
+        }
+    }
+
+    #[test]
+    fn the_pot_error_table_sizes_the_envelope_bin_by_bin() {
+        let d = Design::paper();
+        let sched = Schedule::new(&d, &Config::paper(Length::from_int(3))).unwrap();
+        let mut s = Supervisor::new(&with_table(), &sched).unwrap();
+        // Oracle in f64: φ_b + θ_cap from the schedule, the quantisations and the table's
+        // entries from the sensors' resolutions (300°/1024, 2π/4096).
+        let rad = |bits: i64| bits as f64 / 4_294_967_296.0;
+        let pot_count = 300f64.to_radians() / 1024.0;
+        let fixed = rad(sched.free_play().to_bits())
+            + rad(sched.setting().deflection_capacity().to_bits())
+            + pot_count
+            + core::f64::consts::PI / 4096.0;
+        // Bin b: its entry + the largest (10 counts: the alignment at power-up).
+        let want = |centi: f64| fixed + pot_count * (centi + 1000.0) / 100.0;
+        for (pot, centi) in [
+            (256u16, 1000.0),
+            (300, 1000.0),
+            (640, 100.0),
+            (703, 100.0),
+            (0, 250.0),
+        ] {
+            let got = rad(s.deflection_envelope_at(pot).to_bits());
+            assert!(
+                (got - want(centi)).abs() < 1e-8,
+                "pot {pot}: {got} vs {}",
+                want(centi)
+            );
+        }
+        assert!((rad(s.deflection_envelope().to_bits()) - want(100.0)).abs() < 1e-8);
+        // In bin 10 (pot 660) the envelope is 12 counts + φ_b + θ_cap + half an encoder
+        // count (2.3 counts at L = 3 mm): 15 counts off trips, 12 do not. The link angle is
+        // set to the pot's gear angle, then the pot moves off it.
+        let at = |pot: u16, off: i32| -> (Readings, Output) {
+            let mut r = quiet(0);
+            r.gear_pot = Some((i32::from(pot) + off) as u16);
+            let out = Output {
+                link_angle: Angle::from_bits(i64::from(i32::from(pot) - 512) * POT_COUNT_Q32),
+                ..Output::default()
+            };
+            (r, out)
+        };
+        let (r, out) = at(660, 12);
+        assert_eq!(s.check(1, &r, &out), None);
+        let (r, out) = at(660, 15);
+        assert_eq!(s.check(2, &r, &out).unwrap().code, FaultCode::BeamOverload);
+        // In bin 4 (pot 290, entry 10 counts) 20 counts are within the envelope (23.3).
+        let (mut s, _) = (Supervisor::new(&with_table(), &sched).unwrap(), ());
+        let (r, out) = at(290, 14);
+        assert_eq!(s.check(1, &r, &out), None);
+        let (r, out) = at(290, 20);
+        assert_eq!(s.check(2, &r, &out), None);
+        // The fixed tolerance trips there at once.
+        let (mut f, _) = sup(3);
+        let (r, out) = at(290, 14);
+        assert_eq!(f.check(1, &r, &out).unwrap().code, FaultCode::BeamOverload);
+    }
+
+    #[test]
+    fn reconfiguring_keeps_the_table_and_installing_copies_it() {
+        let d = Design::paper();
+        let s3 = Schedule::new(&d, &Config::paper(Length::from_int(3))).unwrap();
+        let s5 = Schedule::new(&d, &Config::paper(Length::from_int(5))).unwrap();
+        let mut s = Supervisor::new(&with_table(), &s3).unwrap();
+        let other = Supervisor::new(&with_table(), &s5).unwrap();
+        s.reconfigure(&with_table(), &s5).unwrap();
+        assert_eq!(
+            s.deflection_envelope_at(290),
+            other.deflection_envelope_at(290)
+        );
+        let (mut plain, _) = sup(5);
+        plain.install_thresholds(&other);
+        assert_eq!(
+            plain.deflection_envelope_at(660),
+            other.deflection_envelope_at(660)
+        );
+        assert_eq!(plain.config().pot_error, with_table().pot_error);
+    }
+
+    #[test]
     fn the_heartbeat_timeout_is_armed_by_the_first_heartbeat() {
         let (mut s, _) = sup(3);
         assert_eq!(s.check(500, &quiet(0), &at_rest()), None);
@@ -967,6 +1068,14 @@ mod tests {
         assert_eq!(
             bad(|c| c.overload_ticks = 11),
             SupervisorError::OverloadTicks
+        );
+        assert_eq!(
+            bad(|c| {
+                let mut t = PotErrorTable::default();
+                t.centi[9] = crate::calibration::pot_error::MAX_ERROR_CENTI + 1;
+                c.pot_error = Some(t);
+            }),
+            SupervisorError::PotErrorTable
         );
     }
 }

@@ -988,3 +988,30 @@ impl Calibration {
         None
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::control::MotorParams;
+
+    #[test]
+    fn unvisited_bins_get_the_worst_visited_entry_or_the_fixed_tolerance() {
+        let cfg = CalibrationConfig::new(&Design::paper(), &MotorParams::AX12A, Sign::Plus, 4096)
+            .unwrap();
+        let mut c = Calibration::new(&cfg);
+        c.pot_err_centi[6] = 180;
+        c.pot_err_centi[7] = 420;
+        c.visited = (1 << 6) | (1 << 7);
+        // σ = 0.4 count: margin 3σ = 120 centi.
+        let t = c.pot_error_table(40);
+        assert_eq!((t.centi[6], t.centi[7]), (300, 540));
+        assert!(t.centi.iter().enumerate().all(|(b, &e)| b == 6 || e == 540));
+        // A quiet pot: the margin's floor, and the fixed 3 counts where nothing was seen.
+        c.pot_err_centi[7] = 100;
+        let t = c.pot_error_table(0);
+        assert_eq!((t.centi[6], t.centi[7], t.centi[0]), (230, 150, 300));
+        // Entries are capped at the table's bound.
+        c.pot_err_centi[6] = u16::MAX;
+        assert_eq!(c.pot_error_table(0).max_centi(), MAX_ERROR_CENTI);
+    }
+}
