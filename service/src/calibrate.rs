@@ -202,14 +202,18 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
             self.actuator.lock(|a| a.calibration.abort());
             return Ok(());
         }
-        // Configuration time: the bound and the duty from the design and the datasheet.
-        let cfg = CalibrationConfig::new(
-            &self.service.design,
-            &self.service.config.motor,
-            Sign::Plus,
-            ENCODER_COUNTS,
-        )
-        .map_err(|_| ErrorCode::OutOfRange)?;
+        // Configuration time: the bound and the duty from the design and the datasheet; the
+        // pot error table's floor for unvisited bins is the supervisor's fixed tolerance.
+        let cfg = CalibrationConfig {
+            pot_tolerance_counts: self.service.supervision.pot_tolerance_counts,
+            ..CalibrationConfig::new(
+                &self.service.design,
+                &self.service.config.motor,
+                Sign::Plus,
+                ENCODER_COUNTS,
+            )
+            .map_err(|_| ErrorCode::OutOfRange)?
+        };
         self.actuator.lock(|a| {
             // Not during the correction layer's boot window (motor off, no checks).
             if a.servo.state() != ServoState::Disabled
