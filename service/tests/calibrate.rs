@@ -86,7 +86,7 @@ fn a_calibration_runs_from_disabled_and_its_result_drives_the_controller() {
     assert_eq!(b.service.calibration().map(|s| s.wire()), Some(c));
     // The new correction is installed: the correction layer aligns the encoder to the pot
     // again first (motor off), then the loop closes on it: a move with no fault.
-    assert_eq!(b.ask(Request::Enable), Reply::Error(ErrorCode::NotAllowed));
+    assert_eq!(b.ask(Request::Enable), Reply::Error(ErrorCode::Busy));
     for _ in 0..model::calibration::correction::BOOT_TICKS {
         b.step();
     }

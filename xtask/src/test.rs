@@ -194,11 +194,12 @@ pub fn run() -> Result<bool> {
     Ok(tally.failed == 0)
 }
 
-/// `cargo test` on the host crates. Each Rust test counts on its own; a cargo failure
-/// that reports no failing test (a build error) counts as one failure.
+/// `cargo test` on the host crates, every test binary even after one fails (a failure
+/// must not hide the others). Each Rust test counts on its own; a cargo failure that
+/// reports no failing test (a build error) counts as one failure.
 fn host_tests(tally: &mut Tally) {
     let mut cmd = cargo();
-    cmd.args(["test"]).stdout(Stdio::piped());
+    cmd.args(["test", "--no-fail-fast"]).stdout(Stdio::piped());
     let mut child = match cmd.spawn() {
         Ok(child) => child,
         Err(e) => return tally.record("cargo test", Err(e.into())),
