@@ -8,16 +8,15 @@
 //!
 //! `cargo test -p host-tests --release --test pot_error -- --nocapture` prints the figures.
 
-use model::calibration::correction::Sign;
+use host_tests::calibrate::calibrate;
 use model::calibration::pot_error::PotErrorTable;
-use model::calibration::sequence::{Calibration, CalibrationConfig, CalibrationResult, Progress};
-use model::control::{Config, MotorParams};
-use model::servo::TickInput;
+use model::calibration::sequence::{CalibrationResult, Progress};
+use model::control::Config;
 use model::supervisor::{FaultCode, SupervisorConfig};
 use model::{Angle, Command, Design, Length};
 use plant::harness::{allowable_stress_pa, plant_config, run_script, Disturbance, Scenario};
 use plant::overrides::Overrides;
-use plant::{BridgeCommand, Plant};
+use plant::Plant;
 
 /// The simulated actuator: a pot with a bow of 8 counts over its track and 1.5 counts of
 /// noise (the calibration accepts up to 2, docs/calibration.md), the link at −0.8 rad at
@@ -38,27 +37,13 @@ fn overrides() -> Overrides {
 
 /// Calibrates the plant `overrides` make of the nominal one at `l_mm` through its raw
 /// readings (the sequence and the plant meet only at the sensor and bridge interface).
-fn calibrate(design: &Design, l_mm: i32) -> CalibrationResult {
+fn calibrated(design: &Design, l_mm: i32) -> CalibrationResult {
     let config = Config::paper(Length::from_int(l_mm));
     let pc = overrides().apply(&plant_config(design, &config, 0.0).unwrap());
     let mut plant = Plant::new(pc);
-    let cfg = CalibrationConfig::new(design, &MotorParams::AX12A, Sign::Plus, 4096).unwrap();
-    let mut cal = Calibration::new(&cfg);
-    for _ in 0..MAX_TICKS {
-        let r = plant.readings();
-        let duty = cal.step(&TickInput {
-            link_encoder: r.link_encoder,
-            gear_pot: Some(r.gear_pot),
-            current_adc: r.current_adc,
-            read_error: None,
-        });
-        plant.step_tick_cmd(duty.map_or(BridgeCommand::Coast, BridgeCommand::Drive));
-        if !matches!(cal.progress(), Progress::Running { .. }) {
-            break;
-        }
-    }
-    assert_eq!(cal.progress(), Progress::Done);
-    *cal.result().unwrap()
+    let run = calibrate(&mut plant, design, MAX_TICKS, |_| {});
+    assert_eq!(run.cal.progress(), Progress::Done);
+    *run.cal.result().unwrap()
 }
 
 /// What a run showed.
@@ -134,7 +119,7 @@ fn with_table(t: PotErrorTable) -> SupervisorConfig {
 fn the_measured_table_stops_false_trips_and_keeps_real_overloads() {
     let design = Design::paper();
     for l_mm in [3, 5] {
-        let cal = calibrate(&design, l_mm);
+        let cal = calibrated(&design, l_mm);
         let t = cal.pot_error;
         println!(
             "L = {l_mm} mm, {POT}: table (pot counts × 100) {:?}, RMS residual {} centi",
