@@ -280,3 +280,33 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use model::calibration::pot_error::PotErrorTable;
+    use store::Record;
+
+    #[test]
+    fn the_stored_record_keeps_the_pot_error_table() {
+        let mut pot_error = PotErrorTable {
+            centi: [410; model::calibration::pot_error::POT_ERROR_BINS],
+        };
+        pot_error.centi[7] = 321;
+        let r = CalibrationResult {
+            correction: SensorCorrection::NOMINAL,
+            resistance_mohm: 8_000,
+            back_emf_mv_s_per_rad: 1_940,
+            back_emf_uv_s_per_rad: 1_940_000,
+            gear_friction_unm: 10_000,
+            link_inertia_nano: 1_000_000,
+            pot_error_centi: 120,
+            pot_error,
+            free_play_pot_centi: 100,
+            current_noise_centi: 100,
+        };
+        let cal = record(&r);
+        assert_eq!(cal.pot_error_centi, Some(pot_error.centi));
+        assert_eq!(cal.check(), Ok(()));
+    }
+}
