@@ -55,23 +55,19 @@ pub fn serve<'q, W: embedded_io::Write>(link: Link<'q, W>, factory_id: u8) -> Li
     link
 }
 
-/// The rate the UART runs at, bit/s (0: the link's own rate, before the bus's is applied).
-#[cfg(feature = "dynamixel-ttl")]
-static UART_BPS: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
-
 /// After each run of the link task: on a Dynamixel TTL bus (`dynamixel-ttl`), the bus's
 /// Baud Rate goes to the UART (`Link::poll` returns only once no status waits, so the
 /// status that changed it has gone out at the old rate). Elsewhere the UART keeps the
 /// link's rate: the emulated USART ignores the rate, and the ST-LINK's virtual COM port
-/// carries our protocol at 921 600 Bd.
-pub fn follow_baud(link: &mut Link<'_, crate::board::SerialTx>) {
+/// carries our protocol at 921 600 Bd. `applied` is the rate the UART runs at, bit/s (the
+/// link task's own; 0: the link's own rate, before the bus's is applied).
+pub fn follow_baud(link: &mut Link<'_, crate::board::SerialTx>, applied: &mut u32) {
     #[cfg(feature = "dynamixel-ttl")]
     {
-        use core::sync::atomic::Ordering;
         let Some(bps) = link.dynamixel().and_then(|b| b.baud_bps()) else {
             return;
         };
-        if UART_BPS.load(Ordering::Relaxed) == bps {
+        if *applied == bps {
             return;
         }
         match drivers::usart_baud::divider(crate::board::USART2_CLOCK_HZ, bps) {
@@ -82,8 +78,8 @@ pub fn follow_baud(link: &mut Link<'_, crate::board::SerialTx>) {
             // Refused by the bus's checks before; a stored one from another board.
             Err(e) => defmt::warn!("Dynamixel bus: {=u32} Bd not made: {}", bps, e),
         }
-        UART_BPS.store(bps, Ordering::Relaxed);
+        *applied = bps;
     }
     #[cfg(not(feature = "dynamixel-ttl"))]
-    let _ = link;
+    let _ = (link, applied);
 }

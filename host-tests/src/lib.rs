@@ -2,6 +2,7 @@
 //! the fixed-point code in `model`.
 #![forbid(unsafe_code)]
 
+pub mod calibrate;
 pub mod convert;
 pub mod grid;
 pub mod oracle;

@@ -7,9 +7,9 @@
 //! `CALIBRATION_BUILDS=500 cargo test -p host-tests --release --test calibration` runs more
 //! builds (default 50).
 
-use model::calibration::correction::Sign;
-use model::calibration::sequence::{Calibration, CalibrationConfig, Failure, Progress};
-use model::control::{Config, MotorParams};
+use host_tests::calibrate::calibrate;
+use model::calibration::sequence::{Calibration, Failure, Progress};
+use model::control::Config;
 use model::servo::TickInput;
 use model::{Design, Length};
 use plant::harness::{allowable_stress_pa, coupling_at, plant_config};
@@ -27,34 +27,17 @@ struct Outcome {
 }
 
 fn run(plant: &mut Plant, design: &Design) -> Outcome {
-    let cfg = CalibrationConfig::new(design, &MotorParams::AX12A, Sign::Plus, 4096).unwrap();
-    let mut cal = Calibration::new(&cfg);
     let sigma = allowable_stress_pa(design);
     let mut peak = 0.0f64;
-    let mut ticks = 0;
-    let mut last = None;
-    while ticks < MAX_TICKS {
-        let r = plant.readings();
-        let duty = cal.step(&TickInput {
-            link_encoder: r.link_encoder,
-            gear_pot: Some(r.gear_pot),
-            current_adc: r.current_adc,
-            read_error: None,
-        });
-        last = duty;
-        plant.step_tick_cmd(duty.map_or(BridgeCommand::Coast, BridgeCommand::Drive));
-        peak = peak.max(f64::from(plant.state().beam_stress_pa).abs() / sigma);
-        ticks += 1;
-        if !matches!(cal.progress(), Progress::Running { .. }) {
-            break;
-        }
-    }
+    let r = calibrate(plant, design, MAX_TICKS, |p| {
+        peak = peak.max(f64::from(p.state().beam_stress_pa).abs() / sigma);
+    });
     Outcome {
-        progress: cal.progress(),
-        cal,
-        ticks,
+        progress: r.cal.progress(),
+        cal: r.cal,
+        ticks: r.ticks,
         peak_stress_ratio: peak,
-        off_at_end: last.is_none(),
+        off_at_end: r.last_duty.is_none(),
     }
 }
 

@@ -22,9 +22,15 @@
 //! instead of τ_cap(L).
 //!
 //! Deflection envelope: φ_b + θ_cap(L) + one pot count + half an encoder count (the two
-//! quantisations) + the pot centre's calibration tolerance (`pot_tolerance_counts`, what
-//! calibration leaves, docs/design.md §9): any larger measured deflection means the beams are
-//! bent beyond their stress capacity or a sensor lies.
+//! quantisations) + the pot's error: any larger measured deflection means the beams are
+//! bent beyond their stress capacity or a sensor lies. The pot's error is the fixed
+//! `pot_tolerance_counts` (the pot centre's calibration tolerance, docs/design.md §9), or,
+//! with the table calibration measured (`pot_error`, [`PotErrorTable`],
+//! docs/calibration.md), per sixteenth of the pot's track: the table's entry for the bin of
+//! this tick's reading plus its largest entry (the encoder was aligned to the pot at
+//! power-up, wherever the link was, so that reading's error is in the link angle). The 16
+//! envelopes are computed with the thresholds; per tick the check reads the one of the
+//! reading's bin (a shift and an index).
 //!
 //! The torque estimate is a model output (k_t·i minus the gear's inertial torque from the
 //! back-EMF observer): a duty jump with an imperfect resistance or back-EMF constant gives
@@ -35,6 +41,7 @@
 //! Every threshold is converted to the per-tick formats when the supervisor is built
 //! ([`Supervisor::new`]), never per tick; the per-tick work is compares and one multiply.
 
+use crate::calibration::pot_error::{PotErrorTable, POT_ERROR_BINS};
 use crate::clutch_monitor::{ClutchLimits, ClutchMonitor};
 use crate::control::{Output, Schedule};
 use crate::sensors::{
@@ -198,6 +205,10 @@ pub struct SupervisorConfig {
     /// that longer length. 0 turns the monitor's capacity off (τ_cap(L) as configured).
     /// Default 0.
     pub clutch_tolerance: crate::units::Length,
+    /// The pot's error per sixteenth of its track as calibration measured it
+    /// ([`PotErrorTable`]); replaces `pot_tolerance_counts` in the deflection envelope,
+    /// bin by bin (module docs). `None` (default): the fixed tolerance.
+    pub pot_error: Option<PotErrorTable>,
 }
 
 impl SupervisorConfig {
@@ -215,6 +226,7 @@ impl SupervisorConfig {
         pot_tolerance_counts: 3,
         overload_ticks: 2,
         clutch_tolerance: crate::units::Length::from_int(0),
+        pot_error: None,
     };
 }
 
@@ -246,6 +258,9 @@ pub enum SupervisorError {
     OverloadTicks,
     /// `clutch_tolerance` not in [0, 5] mm.
     ClutchTolerance,
+    /// A `pot_error` entry above
+    /// [`MAX_ERROR_CENTI`](crate::calibration::pot_error::MAX_ERROR_CENTI) (50 pot counts).
+    PotErrorTable,
 }
 
 impl core::fmt::Display for SupervisorError {
@@ -260,6 +275,7 @@ impl core::fmt::Display for SupervisorError {
             SupervisorError::PotTolerance => "pot tolerance above 100 counts",
             SupervisorError::OverloadTicks => "overload ticks outside 1..=10",
             SupervisorError::ClutchTolerance => "clutch tolerance outside [0, 5] mm",
+            SupervisorError::PotErrorTable => "pot error table entry above 50 counts",
         })
     }
 }
@@ -290,8 +306,6 @@ struct Thresholds {
     stuck_ticks: u16,
     /// τ_cap(L), I32F32 bits.
     torque_cap: i64,
-    /// Deflection envelope, I32F32 bits (rad).
-    envelope: i64,
     pot_center: i32,
     position_min: i64,
     position_max: i64,
@@ -324,6 +338,10 @@ pub struct Supervisor {
     /// the thresholds, which the check copies each tick).
     clutch: ClutchMonitor,
     clutch_lim: Option<ClutchLimits>,
+    /// Deflection envelope per bin of the canonical pot reading
+    /// ([`PotErrorTable::bin`]), I32F32 bits (rad): all equal without a pot error table.
+    /// Kept out of the thresholds (which the check copies each tick): one entry is read.
+    envelopes: [i64; POT_ERROR_BINS],
 }
 
 impl Supervisor {
@@ -336,6 +354,7 @@ impl Supervisor {
         let th = Self::thresholds(cfg, sched)?;
         Ok(Supervisor {
             clutch_lim: Self::clutch_limits(cfg, sched),
+            envelopes: Self::envelopes(cfg, sched),
             cfg: *cfg,
             th,
             latched: FaultSet(0),
@@ -365,6 +384,7 @@ impl Supervisor {
         self.cfg = *cfg;
         self.clutch = ClutchMonitor::new();
         self.clutch_lim = Self::clutch_limits(cfg, sched);
+        self.envelopes = Self::envelopes(cfg, sched);
         Ok(())
     }
 
@@ -408,16 +428,13 @@ impl Supervisor {
         if !(0..=5 * Q32_ONE).contains(&tol) {
             return Err(SupervisorError::ClutchTolerance);
         }
+        if cfg.pot_error.is_some_and(|t| !t.is_valid()) {
+            return Err(SupervisorError::PotErrorTable);
+        }
         // Counts per tick at max speed: speed[rad/s]·1e-3 s / count, rounded up, + 1.
         let per_tick = speed / 1000;
         let max_jump_counts = (per_tick + COUNT_Q32 - 1) / COUNT_Q32 + 1;
         let setting = sched.setting();
-        let envelope = sched
-            .free_play()
-            .to_bits()
-            .saturating_add(setting.deflection_capacity().to_bits())
-            .saturating_add(POT_COUNT_Q32 * (1 + i64::from(cfg.pot_tolerance_counts)))
-            .saturating_add(COUNT_Q32 / 2);
         Ok(Thresholds {
             // |adc − mid| > trip·1024, rounded down: trips at or above the trip current.
             trip_adc: ((trip * i64::from(ADC_COUNTS_PER_A)) >> 32) as i32,
@@ -427,13 +444,39 @@ impl Supervisor {
             max_pot_jump: i32::from(cfg.max_pot_jump),
             stuck_ticks: cfg.stuck_ticks,
             torque_cap: setting.torque_capacity().to_bits(),
-            envelope,
             pot_center: sched.pot_center,
             position_min: cfg.position_min.to_bits(),
             position_max: cfg.position_max.to_bits(),
             timeout_ticks: cfg.command_timeout_ms,
             overload_ticks: cfg.overload_ticks,
         })
+    }
+
+    /// The deflection envelope of each pot bin (module docs), I32F32 bits. `cfg` is
+    /// valid. Without a table every bin has φ_b + θ_cap + (1 + `pot_tolerance_counts`)
+    /// pot counts + half an encoder count; with one, bin b has φ_b + θ_cap + one pot
+    /// count + half an encoder count + the table's entry b (the reading's error here) +
+    /// its largest entry (the error of the reading the encoder was aligned to at power-up,
+    /// anywhere on the track).
+    fn envelopes(cfg: &SupervisorConfig, sched: &Schedule) -> [i64; POT_ERROR_BINS] {
+        let base = sched
+            .free_play()
+            .to_bits()
+            .saturating_add(sched.setting().deflection_capacity().to_bits())
+            .saturating_add(POT_COUNT_Q32)
+            .saturating_add(COUNT_Q32 / 2);
+        let counts = |centi: u16| POT_COUNT_Q32 * i64::from(centi) / 100;
+        match cfg.pot_error {
+            None => {
+                [base.saturating_add(counts(cfg.pot_tolerance_counts.saturating_mul(100)));
+                    POT_ERROR_BINS]
+            }
+            Some(t) => {
+                let aligned = counts(t.max_centi());
+                t.centi
+                    .map(|e| base.saturating_add(aligned).saturating_add(counts(e)))
+            }
+        }
     }
 
     /// Takes the configuration and thresholds of `other` (built for another schedule),
@@ -443,6 +486,7 @@ impl Supervisor {
         self.th = other.th;
         self.clutch = ClutchMonitor::new();
         self.clutch_lim = other.clutch_lim;
+        self.envelopes = other.envelopes;
     }
 
     /// The configuration in use.
@@ -472,10 +516,18 @@ impl Supervisor {
         self.clutch_lim.map(|_| self.clutch.state())
     }
 
-    /// Deflection envelope (φ_b + θ_cap + quantisation) the overload and stuck checks use.
+    /// Deflection envelope (φ_b + θ_cap + the pot's error + quantisation) the overload and
+    /// stuck checks use at canonical pot reading `pot`.
+    #[must_use]
+    pub fn deflection_envelope_at(&self, pot: u16) -> Angle {
+        Angle::from_bits(self.envelopes[PotErrorTable::bin(pot)])
+    }
+
+    /// The smallest deflection envelope over the pot's track (the only one without a pot
+    /// error table).
     #[must_use]
     pub fn deflection_envelope(&self) -> Angle {
-        Angle::from_bits(self.th.envelope)
+        Angle::from_bits(self.envelopes.iter().copied().min().unwrap_or(0))
     }
 
     /// Largest plausible link-encoder change per tick, counts.
@@ -642,7 +694,7 @@ impl Supervisor {
             if let Some(permille) = mismatch {
                 note(self, FaultCode::ClutchMismatch, permille);
             }
-            if phi.saturating_abs() > th.envelope {
+            if phi.saturating_abs() > self.envelopes[PotErrorTable::bin(pot)] {
                 let tau = out.torque_estimate.to_bits().saturating_abs();
                 let micro = to_micro(phi);
                 if self.unchanged_ticks >= th.stuck_ticks && tau < th.torque_cap / 2 {
@@ -837,6 +889,107 @@ mod tests {
     }
 
     #[test]
+    fn without_a_pot_error_table_every_bin_has_the_fixed_envelope() {
+        let (s, _) = sup(3);
+        let env = s.deflection_envelope();
+        for pot in (0..1024).step_by(7) {
+            assert_eq!(s.deflection_envelope_at(pot), env);
+        }
+    }
+
+    /// A table with bin 4 at 10 counts (the largest) and bin 10 at 1 count.
+    fn with_table() -> SupervisorConfig {
+        let mut t = PotErrorTable {
+            centi: [250; POT_ERROR_BINS],
+        };
+        t.centi[4] = 1000;
+        t.centi[10] = 100;
+        SupervisorConfig {
+            pot_error: Some(t),
+            ..SupervisorConfig::DEFAULT
+        }
+    }
+
+    #[test]
+    fn the_pot_error_table_sizes_the_envelope_bin_by_bin() {
+        let d = Design::paper();
+        let sched = Schedule::new(&d, &Config::paper(Length::from_int(3))).unwrap();
+        let mut s = Supervisor::new(&with_table(), &sched).unwrap();
+        // Oracle in f64: φ_b + θ_cap from the schedule, the quantisations and the table's
+        // entries from the sensors' resolutions (300°/1024, 2π/4096).
+        let rad = |bits: i64| bits as f64 / 4_294_967_296.0;
+        let pot_count = 300f64.to_radians() / 1024.0;
+        let fixed = rad(sched.free_play().to_bits())
+            + rad(sched.setting().deflection_capacity().to_bits())
+            + pot_count
+            + core::f64::consts::PI / 4096.0;
+        // Bin b: its entry + the largest (10 counts: the alignment at power-up).
+        let want = |centi: f64| fixed + pot_count * (centi + 1000.0) / 100.0;
+        for (pot, centi) in [
+            (256u16, 1000.0),
+            (300, 1000.0),
+            (640, 100.0),
+            (703, 100.0),
+            (0, 250.0),
+        ] {
+            let got = rad(s.deflection_envelope_at(pot).to_bits());
+            assert!(
+                (got - want(centi)).abs() < 1e-8,
+                "pot {pot}: {got} vs {}",
+                want(centi)
+            );
+        }
+        assert!((rad(s.deflection_envelope().to_bits()) - want(100.0)).abs() < 1e-8);
+        // In bin 10 (pot 660) the envelope is 12 counts + φ_b + θ_cap + half an encoder
+        // count (2.3 counts at L = 3 mm): 15 counts off trips, 12 do not. The link angle is
+        // set to the pot's gear angle, then the pot moves off it.
+        let at = |pot: u16, off: i32| -> (Readings, Output) {
+            let mut r = quiet(0);
+            r.gear_pot = Some((i32::from(pot) + off) as u16);
+            let out = Output {
+                link_angle: Angle::from_bits(i64::from(i32::from(pot) - 512) * POT_COUNT_Q32),
+                ..Output::default()
+            };
+            (r, out)
+        };
+        let (r, out) = at(660, 12);
+        assert_eq!(s.check(1, &r, &out), None);
+        let (r, out) = at(660, 15);
+        assert_eq!(s.check(2, &r, &out).unwrap().code, FaultCode::BeamOverload);
+        // In bin 4 (pot 290, entry 10 counts) 20 counts are within the envelope (23.3).
+        let (mut s, _) = (Supervisor::new(&with_table(), &sched).unwrap(), ());
+        let (r, out) = at(290, 14);
+        assert_eq!(s.check(1, &r, &out), None);
+        let (r, out) = at(290, 20);
+        assert_eq!(s.check(2, &r, &out), None);
+        // The fixed tolerance trips there at once.
+        let (mut f, _) = sup(3);
+        let (r, out) = at(290, 14);
+        assert_eq!(f.check(1, &r, &out).unwrap().code, FaultCode::BeamOverload);
+    }
+
+    #[test]
+    fn reconfiguring_keeps_the_table_and_installing_copies_it() {
+        let d = Design::paper();
+        let s3 = Schedule::new(&d, &Config::paper(Length::from_int(3))).unwrap();
+        let s5 = Schedule::new(&d, &Config::paper(Length::from_int(5))).unwrap();
+        let mut s = Supervisor::new(&with_table(), &s3).unwrap();
+        let other = Supervisor::new(&with_table(), &s5).unwrap();
+        s.reconfigure(&with_table(), &s5).unwrap();
+        assert_eq!(
+            s.deflection_envelope_at(290),
+            other.deflection_envelope_at(290)
+        );
+        let (mut plain, _) = sup(5);
+        plain.install_thresholds(&other);
+        assert_eq!(
+            plain.deflection_envelope_at(660),
+            other.deflection_envelope_at(660)
+        );
+        assert_eq!(plain.config().pot_error, with_table().pot_error);
+    }
+
+    #[test]
     fn the_heartbeat_timeout_is_armed_by_the_first_heartbeat() {
         let (mut s, _) = sup(3);
         assert_eq!(s.check(500, &quiet(0), &at_rest()), None);
@@ -915,6 +1068,14 @@ mod tests {
         assert_eq!(
             bad(|c| c.overload_ticks = 11),
             SupervisorError::OverloadTicks
+        );
+        assert_eq!(
+            bad(|c| {
+                let mut t = PotErrorTable::default();
+                t.centi[9] = crate::calibration::pot_error::MAX_ERROR_CENTI + 1;
+                c.pot_error = Some(t);
+            }),
+            SupervisorError::PotErrorTable
         );
     }
 }

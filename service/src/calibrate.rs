@@ -2,8 +2,8 @@
 //! [`protocol::Request::Calibrate`], one step per control tick from the disabled state
 //! ([`Actuator::control`]), its result applied and stored by the command task
 //! ([`Service::finish_calibration`]) and the stored one applied at boot (the controller's
-//! motor model and link inertia, and the sensor correction installed in the actuator's
-//! correction layer, `Actuator::pipeline`).
+//! motor model and link inertia, the supervisor's pot error table, and the sensor
+//! correction installed in the actuator's correction layer, `Actuator::pipeline`).
 //!
 //! The supervisor stays armed throughout: the servo ticks as when disabled (its controller
 //! tracks the sensors, its bridge demand off) behind the sensor-correction layer in force
@@ -146,7 +146,7 @@ fn record(r: &CalibrationResult) -> Calibration {
         encoder_counts_per_turn: c.encoder_counts_per_turn,
         pot_gain_ppm: q16_ppm(c.pot_gain_q16),
         current_gain_ppm: q16_ppm(c.current_gain_q16),
-        pot_error_centi: None,
+        pot_error_centi: Some(r.pot_error.centi),
     }
 }
 
@@ -202,14 +202,18 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
             self.actuator.lock(|a| a.calibration.abort());
             return Ok(());
         }
-        // Configuration time: the bound and the duty from the design and the datasheet.
-        let cfg = CalibrationConfig::new(
-            &self.service.design,
-            &self.service.config.motor,
-            Sign::Plus,
-            ENCODER_COUNTS,
-        )
-        .map_err(|_| ErrorCode::OutOfRange)?;
+        // Configuration time: the bound and the duty from the design and the datasheet; the
+        // pot error table's floor for unvisited bins is the supervisor's fixed tolerance.
+        let cfg = CalibrationConfig {
+            pot_tolerance_counts: self.service.supervision.pot_tolerance_counts,
+            ..CalibrationConfig::new(
+                &self.service.design,
+                &self.service.config.motor,
+                Sign::Plus,
+                ENCODER_COUNTS,
+            )
+            .map_err(|_| ErrorCode::OutOfRange)?
+        };
         self.actuator.lock(|a| {
             // Not during the correction layer's boot window (motor off, no checks).
             if a.servo.state() != ServoState::Disabled
@@ -240,7 +244,8 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
     }
 
     /// Puts `cal` in force: the motor's resistance and back-EMF and the link inertia for
-    /// the controller, the sensor correction (`correction`, else the one `cal` gives).
+    /// the controller, its pot error table for the supervisor, the sensor correction
+    /// (`correction`, else the one `cal` gives).
     pub(crate) fn apply_calibration(
         &mut self,
         cal: &Calibration,
@@ -260,7 +265,8 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         // (the encoder aligned to the pot again in the new frame, motor off).
         model::calibration::correction::Corrector::new(&correction)
             .map_err(|_| ErrorCode::OutOfRange)?;
-        self.reconfigure(config, self.service.supervision)?;
+        let supervision = crate::correction::with_pot_error(cal, &self.service.supervision);
+        self.reconfigure(config, supervision)?;
         self.actuator
             .lock(|a| a.pipeline.install(&correction))
             .map_err(|_| ErrorCode::OutOfRange)
@@ -272,5 +278,35 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         if let Some(cal) = self.service.calibration() {
             let _ = self.apply_calibration(&cal, None);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use model::calibration::pot_error::PotErrorTable;
+    use store::Record;
+
+    #[test]
+    fn the_stored_record_keeps_the_pot_error_table() {
+        let mut pot_error = PotErrorTable {
+            centi: [410; model::calibration::pot_error::POT_ERROR_BINS],
+        };
+        pot_error.centi[7] = 321;
+        let r = CalibrationResult {
+            correction: SensorCorrection::NOMINAL,
+            resistance_mohm: 8_000,
+            back_emf_mv_s_per_rad: 1_940,
+            back_emf_uv_s_per_rad: 1_940_000,
+            gear_friction_unm: 10_000,
+            link_inertia_nano: 1_000_000,
+            pot_error_centi: 120,
+            pot_error,
+            free_play_pot_centi: 100,
+            current_noise_centi: 100,
+        };
+        let cal = record(&r);
+        assert_eq!(cal.pot_error_centi, Some(pot_error.centi));
+        assert_eq!(cal.check(), Ok(()));
     }
 }

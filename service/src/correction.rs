@@ -2,9 +2,12 @@
 //! signs, the encoder's counts per turn, the pot's centre and gain and the current
 //! sense's offset and gain of a [`store::Calibration`] record become a
 //! [`SensorCorrection`], installed in the actuator's [`model::calibration::pipeline`] when
-//! the store is loaded (the encoder is then aligned to the pot again, motor off).
+//! the store is loaded (the encoder is then aligned to the pot again, motor off); its pot
+//! error table becomes the supervisor's ([`SupervisorConfig::pot_error`]), which sizes the
+//! deflection check from it.
 
 use model::calibration::correction::{SensorCorrection, Sign};
+use model::calibration::pot_error::PotErrorTable;
 use model::sensors::{ADC_MID, POT_COUNTS};
 use model::supervisor::SupervisorConfig;
 use rtic_core::Mutex;
@@ -40,6 +43,16 @@ pub fn sensor_correction(cal: &Calibration, supervision: &SupervisorConfig) -> S
         current_gain_q16: ppm_q16(cal.current_gain_ppm),
         adc_min: supervision.adc_min,
         adc_max: supervision.adc_max,
+    }
+}
+
+/// `supervision` with the pot error table of a stored (checked) calibration: the
+/// measured table, or none (the fixed tolerance) where the record has none.
+#[must_use]
+pub fn with_pot_error(cal: &Calibration, supervision: &SupervisorConfig) -> SupervisorConfig {
+    SupervisorConfig {
+        pot_error: cal.pot_error_centi.map(|centi| PotErrorTable { centi }),
+        ..*supervision
     }
 }
 
@@ -95,5 +108,23 @@ mod tests {
         assert_eq!(c.current_offset_q16, 1948 << 16);
         assert_eq!(c.current_gain_q16, 32_768);
         assert!(Corrector::new(&c).is_ok());
+        // No table stored: the fixed tolerance; a stored table goes to the supervisor.
+        let s = with_pot_error(&cal, &SupervisorConfig::DEFAULT);
+        assert_eq!(s, SupervisorConfig::DEFAULT);
+        let mut centi = [300; 16];
+        centi[7] = 125;
+        let measured = Calibration {
+            pot_error_centi: Some(centi),
+            ..cal
+        };
+        let s = with_pot_error(&measured, &SupervisorConfig::DEFAULT);
+        assert_eq!(s.pot_error.map(|t| t.centi[7]), Some(125));
+        assert_eq!(
+            SupervisorConfig {
+                pot_error: None,
+                ..s
+            },
+            SupervisorConfig::DEFAULT
+        );
     }
 }

@@ -84,6 +84,10 @@ fn a_calibration_runs_from_disabled_and_its_result_drives_the_controller() {
     );
     // Without a store the calibration is in force until the next boot.
     assert_eq!(b.service.calibration().map(|s| s.wire()), Some(c));
+    // Its pot error table is kept and sizes the supervisor's deflection check.
+    let table = b.service.calibration().and_then(|s| s.pot_error_centi);
+    assert!(table.is_some());
+    assert_eq!(b.service.supervision().pot_error.map(|t| t.centi), table);
     // The new correction is installed: the correction layer aligns the encoder to the pot
     // again first (motor off), then the loop closes on it: a move with no fault.
     assert_eq!(b.ask(Request::Enable), Reply::Error(ErrorCode::Busy));

@@ -261,6 +261,35 @@ fn cut_and_boot(
     Ok(rig.boot_and_read(&file)?.0)
 }
 
+/// Cuts the power after each of the `words` word writes of `op` (after `boot_words` of
+/// boot) on a copy of `base` and boots each copy: every boot must come up with `before` or
+/// `after` (`what` names the operation). Returns (cuts, boots with `before`, boots with
+/// `after`).
+fn sweep(
+    rig: &Rig<'_>,
+    base: &Path,
+    boot_words: u64,
+    words: u64,
+    (what, before, after): (&str, (u32, u16), (u32, u16)),
+    op: impl Fn(&mut Client) -> Result<()>,
+) -> Result<(usize, usize, usize)> {
+    let mut tally = (0, 0, 0);
+    for n in cuts(words) {
+        let got = cut_and_boot(rig, base, boot_words + n, &op)?;
+        tally.0 += 1;
+        if got == before {
+            tally.1 += 1;
+        } else if got == after {
+            tally.2 += 1;
+        } else {
+            bail!(
+                "cut after {what} word {n}: booted with {got:?}, neither {before:?} nor {after:?}"
+            );
+        }
+    }
+    Ok(tally)
+}
+
 /// Runs the test on `board` with `elf`.
 pub fn run(board: Board, elf: &Path) -> Result<Report> {
     let client_board = match board {
@@ -320,33 +349,25 @@ pub fn run(board: Board, elf: &Path) -> Result<Report> {
     let reset_boot = reset_since_boot - reset_words - save_words;
 
     // 2. Power cuts in the save (old → new) and in the factory reset (new → defaults).
-    let mut save_cuts = (0, 0, 0);
-    for n in cuts(save_words) {
-        let got = cut_and_boot(&rig, &old_file, save_boot + n, |c| {
+    let save_cuts = sweep(
+        &rig,
+        &old_file,
+        save_boot,
+        save_words,
+        ("save", OLD, NEW),
+        |c| {
             configure(c, NEW)?;
             c.save().map_err(err("save"))
-        })?;
-        save_cuts.0 += 1;
-        match got {
-            OLD => save_cuts.1 += 1,
-            NEW => save_cuts.2 += 1,
-            other => {
-                bail!("cut after save word {n}: booted with {other:?}, neither {OLD:?} nor {NEW:?}")
-            }
-        }
-    }
-    let mut reset_cuts = (0, 0, 0);
-    for n in cuts(reset_words) {
-        let got = cut_and_boot(&rig, &new_file, reset_boot + n, |c| {
-            c.factory_reset().map_err(err("factory reset"))
-        })?;
-        reset_cuts.0 += 1;
-        match got {
-            NEW => reset_cuts.1 += 1,
-            DEFAULT => reset_cuts.2 += 1,
-            other => bail!("cut after reset word {n}: booted with {other:?}, neither {NEW:?} nor the defaults {DEFAULT:?}"),
-        }
-    }
+        },
+    )?;
+    let reset_cuts = sweep(
+        &rig,
+        &new_file,
+        reset_boot,
+        reset_words,
+        ("factory reset", NEW, DEFAULT),
+        |c| c.factory_reset().map_err(err("factory reset")),
+    )?;
     ensure!(
         save_cuts.1 > 0 && save_cuts.2 > 0 && reset_cuts.1 > 0 && reset_cuts.2 > 0,
         "the sweeps must see both outcomes: save {save_cuts:?}, reset {reset_cuts:?}"

@@ -195,10 +195,10 @@ mod app {
     }
 
     /// The host link: commands in, replies and telemetry out (see `link`).
-    #[task(binds = EXTI1, priority = 1, shared = [actuator], local = [link])]
+    #[task(binds = EXTI1, priority = 1, shared = [actuator], local = [link, uart_bps: u32 = 0])]
     fn serial(mut cx: serial::Context) {
         cx.local.link.poll(&mut cx.shared.actuator);
-        firmware::bus::follow_baud(cx.local.link);
+        firmware::bus::follow_baud(cx.local.link, cx.local.uart_bps);
     }
 
     /// Writes the queued items to defmt (and ends an emulated run).

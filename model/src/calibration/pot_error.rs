@@ -1,10 +1,13 @@
 //! The gear pot's measured error over its track (docs/calibration.md): a bound of
-//! |pot − encoder-derived gear angle| per sixteenth of the track, found by calibration
-//! (the pot against the link encoder while the motor turns slowly, [`super::sequence`])
-//! and kept in the calibration record. The supervisor sizes its deflection check from it
-//! ([`crate::supervisor::SupervisorConfig::pot_error`]) instead of a fixed tolerance: a real
-//! pot's non-linearity and noise exceed the fixed one, and a measured bound tells a bent
-//! beam from a bent pot track.
+//! |pot − encoder-derived gear angle| per sixteenth of the canonical track, found by
+//! calibration (the pot against the link encoder over the steady parts of the moves, the
+//! free play taken out, plus a noise margin, [`super::sequence`]) and kept in the
+//! calibration record. The supervisor sizes its deflection check from it
+//! ([`crate::supervisor::SupervisorConfig::pot_error`]) instead of the fixed
+//! `pot_tolerance_counts`: a real pot's non-linearity and noise exceed the fixed tolerance,
+//! and a measured bound tells a bent beam from a bent pot track. Bins the calibration's
+//! moves did not visit hold the largest visited entry or the fixed tolerance, whichever is
+//! larger.
 
 use crate::sensors::POT_COUNTS;
 

@@ -21,16 +21,32 @@
 //! needs. The stiffness needs a torque on the beams that a free link does not give
 //! (at most J_link·α, a fraction of a pot count): it is reported as not resolvable.
 //!
-//! Arithmetic: integer sums per tick; the divisions happen once, in the final tick.
+//! The pot's error table ([`PotErrorTable`], docs/calibration.md): once a − and a + move
+//! have steady parts, the pot is fitted against the encoder over them (one slope, one
+//! intercept per direction: the free play and the steady deflection are the difference of
+//! the two intercepts); over the steady parts of every later move each bin of the
+//! canonical pot track keeps the largest |pot − that line| it sees, in canonical counts.
+//! At the end each visited bin's entry is that bound plus a noise margin (three standard
+//! deviations of the pot at rest, at least half a count: the bound is the largest of the
+//! samples seen, the next reading may round the other way); a bin the moves did not
+//! visit gets the largest visited entry or the supervisor's fixed pot tolerance, whichever
+//! is larger (nothing was measured there: no tighter than the fixed check, no tighter than
+//! the worst seen). Entries are capped at [`MAX_ERROR_CENTI`] (a pot that bad trips the
+//! supervisor's deflection check in use, which is the point).
+//!
+//! Arithmetic: integer sums per tick; the divisions happen once when the provisional fit
+//! is made and once in the final tick.
 
 use fixed::types::I32F32;
 
-use super::correction::{wrapped_delta, SensorCorrection, Sign};
+use super::correction::{wrapped_delta, Corrector, SensorCorrection, Sign};
+use super::pot_error::{PotErrorTable, MAX_ERROR_CENTI, POT_ERROR_BINS};
 use crate::beam::{BeamModel, Setting};
 use crate::control::MotorParams;
 use crate::design::Design;
 use crate::sensors::{ADC_COUNTS_PER_A, POT_COUNTS, POT_SPAN_DEG};
 use crate::servo::TickInput;
+use crate::supervisor::SupervisorConfig;
 use crate::units::Torque;
 
 /// Ticks at rest with the motor off for the offset and noise statistics.
@@ -65,6 +81,10 @@ const MAX_CURRENT_SIGMA: i64 = 6;
 const MAX_POT_SIGMA: i64 = 2;
 /// Pot readings within this many counts of an end are at a rail.
 const POT_RAIL: u16 = 2;
+/// Noise margin of the pot error table: standard deviations of the pot at rest.
+const TABLE_SIGMAS: i64 = 3;
+/// Smallest noise margin of the pot error table, counts × 100 (half a count).
+const TABLE_MIN_MARGIN_CENTI: i64 = 50;
 
 /// Why calibration stopped (the motor is off). [`Failure::message`] says what to check.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -219,6 +239,10 @@ pub struct CalibrationConfig {
     pub adc_min: u16,
     /// Highest valid ADC reading.
     pub adc_max: u16,
+    /// The supervisor's fixed pot tolerance, counts: the pot error table's entry for a bin
+    /// the moves did not visit is at least this (module docs). Default: the supervisor's
+    /// default.
+    pub pot_tolerance_counts: u16,
 }
 
 impl CalibrationConfig {
@@ -258,6 +282,7 @@ impl CalibrationConfig {
             move_duty: duty.clamp(50, 250) as i16,
             adc_min: 16,
             adc_max: 4079,
+            pot_tolerance_counts: SupervisorConfig::DEFAULT.pot_tolerance_counts,
         })
     }
 }
@@ -283,9 +308,11 @@ pub struct CalibrationResult {
     /// Link inertia, kg·m² × 10⁹ (total from the transients minus the datasheet gear's).
     pub link_inertia_nano: i64,
     /// RMS of the pot about the line fitted to the encoder over the moves, pot counts
-    /// ×100 (the pot's non-linearity and noise: size the supervisor's pot tolerance from
-    /// it).
+    /// ×100 (the pot's non-linearity and noise).
     pub pot_error_centi: i32,
+    /// The pot's error bound per bin of its track (module docs): the supervisor's
+    /// deflection check is sized from it.
+    pub pot_error: PotErrorTable,
     /// Pot counts between the two sides of the free play (moving − and +), ×100.
     pub free_play_pot_centi: i32,
     /// Standard deviation of the current at rest, ADC counts ×100.
@@ -350,6 +377,48 @@ enum Phase {
     Finished,
 }
 
+/// The pot against the encoder as fitted over the first − and + moves' steady parts: raw
+/// pot ≈ `slope`·(raw encoder turned) + the intercept of the move's direction.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct PotLine {
+    /// Raw pot counts per raw encoder count, Q32.
+    slope_q32: i64,
+    /// Raw pot counts at encoder 0, Q32, moving + and moving −.
+    plus_q32: i64,
+    minus_q32: i64,
+    /// Canonical pot counts per raw pot count (1/gain), Q16.
+    inv_gain_q16: i64,
+    /// The canonical pot reading of a raw one (the correction with the fitted gain).
+    corrector: Corrector,
+}
+
+/// The pooled pot-vs-encoder sums over `moves`' steady parts, each move centred on its
+/// own means (the free play shifts the intercepts): (Σxx, Σxy, Σyy, Σn²), all ×n.
+fn pooled(moves: &[Move]) -> (i128, i128, i128, i128) {
+    let (mut sxx, mut sxy, mut syy, mut nsq) = (0i128, 0, 0, 0);
+    for m in moves.iter().filter(|m| m.n_ss >= i64::from(MIN_STEADY)) {
+        let nn = i128::from(m.n_ss);
+        let (mx, my) = (i128::from(m.sx), i128::from(m.sy));
+        sxx += i128::from(m.sxx) * nn - mx * mx;
+        sxy += i128::from(m.sxy) * nn - mx * my;
+        syy += i128::from(m.syy) * nn - my * my;
+        nsq += nn * nn;
+    }
+    (sxx, sxy, syy, nsq)
+}
+
+/// The nominal pot slope, (1024/300°)/(cpt/360°) raw pot counts per raw encoder count,
+/// Q32, for an encoder of `cpt` counts per turn (at least 1).
+fn nominal_slope_q32(cpt: u16) -> i128 {
+    (((i128::from(POT_COUNTS) * 360) << 32) / (i128::from(POT_SPAN_DEG) * i128::from(cpt))).max(1)
+}
+
+/// Raw pot counts at encoder 0 of move `m` at slope `slope_q32`, Q32.
+fn intercept_q32(m: &Move, slope_q32: i128) -> i128 {
+    let nn = i128::from(m.n_ss).max(1);
+    ((i128::from(m.sy) << 32) - slope_q32 * i128::from(m.sx)) / nn
+}
+
 /// Phases reported in [`Progress::Running`].
 pub const PHASES: u8 = 5;
 
@@ -376,6 +445,12 @@ pub struct Calibration {
     motor: Sign,
     pot_dir: Sign,
     moves: [Move; MOVES],
+    /// The provisional pot line (after the first − and + moves) and, per bin of the
+    /// canonical pot track, the largest |pot − line| seen since, canonical counts × 100
+    /// (`visited`: bit b set once bin b saw a sample).
+    line: Option<PotLine>,
+    pot_err_centi: [u16; POT_ERROR_BINS],
+    visited: u16,
     result: Option<CalibrationResult>,
 }
 
@@ -404,6 +479,9 @@ impl Calibration {
             motor: Sign::Plus,
             pot_dir: Sign::Plus,
             moves: [Move::default(); MOVES],
+            line: None,
+            pot_err_centi: [0; POT_ERROR_BINS],
+            visited: 0,
             result: None,
         }
     }
@@ -493,6 +571,9 @@ impl Calibration {
                 } else if next as usize >= self.moves.len() {
                     return self.finish();
                 } else {
+                    if self.line.is_none() {
+                        self.line = self.fit_line(usize::from(next));
+                    }
                     self.start_move(next, pot);
                 }
                 Some(0)
@@ -663,6 +744,10 @@ impl Calibration {
             m.sum_t += i64::from(k - 1);
             m.sum_enc += enc - m.enc0;
         }
+        let (dir, i1) = (m.dir, m.i1);
+        if k > STEADY_FROM {
+            self.note_pot_error(turned, pot, dir);
+        }
         self.progress = Progress::Running {
             phase: if usize::from(index) + 1 == MOVES {
                 4
@@ -671,7 +756,7 @@ impl Calibration {
             },
             percent: (20 + (75 * u32::from(index) + k.min(800) * 75 / 800) / MOVES as u32) as u8,
         };
-        let reached = if m.dir > 0 {
+        let reached = if dir > 0 {
             here >= target
         } else {
             here <= target
@@ -686,12 +771,90 @@ impl Calibration {
         if k > MOVE_TIMEOUT {
             return self.fail(Failure::Timeout);
         }
-        if k == 3 && m.i1.abs() < 16 {
+        if k == 3 && i1.abs() < 16 {
             // The first driven tick's current is V/R, hundreds of counts.
             return self.fail(Failure::CurrentDead);
         }
-        let duty = i64::from(self.cfg.move_duty) * i64::from(m.dir) * i64::from(self.motor.value());
+        let duty = i64::from(self.cfg.move_duty) * i64::from(dir) * i64::from(self.motor.value());
         Some(duty as i16)
+    }
+
+    /// The provisional pot line from the steady parts of the first `done` moves, once
+    /// they hold a − and a + move (module docs).
+    fn fit_line(&self, done: usize) -> Option<PotLine> {
+        let moves = &self.moves[..done];
+        let steady = |d: i32| {
+            moves
+                .iter()
+                .find(|m| m.dir == d && m.n_ss >= i64::from(MIN_STEADY))
+        };
+        let (plus, minus) = (steady(1)?, steady(-1)?);
+        let (sxx, sxy, _, _) = pooled(moves);
+        if sxx <= 0 || sxy == 0 {
+            return None;
+        }
+        let slope_q32 = (sxy << 32) / sxx;
+        let gain_q16 = ((slope_q32.abs() << 16)
+            / nominal_slope_q32(self.cfg.encoder_counts_per_turn))
+        .clamp(1 << 15, 1 << 17);
+        let correction = SensorCorrection {
+            pot_direction: Sign::of(
+                (slope_q32 * i128::from(self.cfg.encoder_direction.value())) as i64,
+            ),
+            pot_gain_q16: gain_q16 as i32,
+            ..SensorCorrection::NOMINAL
+        };
+        Some(PotLine {
+            slope_q32: slope_q32 as i64,
+            plus_q32: intercept_q32(plus, slope_q32) as i64,
+            minus_q32: intercept_q32(minus, slope_q32) as i64,
+            inv_gain_q16: (1i64 << 32) / gain_q16 as i64,
+            corrector: Corrector::new(&correction).ok()?,
+        })
+    }
+
+    /// One steady sample of a move in direction `dir` (raw encoder turned `x`, raw pot
+    /// `pot`) against the provisional line, into the table's bin of the reading.
+    fn note_pot_error(&mut self, x: i64, pot: u16, dir: i32) {
+        let Some(line) = &self.line else {
+            return;
+        };
+        let b = if dir > 0 {
+            line.plus_q32
+        } else {
+            line.minus_q32
+        };
+        let predicted = i128::from(line.slope_q32) * i128::from(x) + i128::from(b);
+        let off_q32 = ((i128::from(pot) << 32) - predicted).abs();
+        // Canonical counts × 100: raw counts / gain.
+        let centi = (off_q32 * i128::from(line.inv_gain_q16) * 100) >> 48;
+        let canonical = (line.corrector.pot_q16(pot) >> 16).clamp(0, i64::from(POT_COUNTS) - 1);
+        let bin = PotErrorTable::bin(canonical as u16);
+        let e = centi.min(i128::from(u16::MAX)) as u16;
+        self.pot_err_centi[bin] = self.pot_err_centi[bin].max(e);
+        self.visited |= 1 << bin;
+    }
+
+    /// The pot error table from the bounds seen (module docs); `pot_sigma_centi` is the
+    /// pot's standard deviation at rest, counts × 100.
+    fn pot_error_table(&self, pot_sigma_centi: i64) -> PotErrorTable {
+        let margin = (TABLE_SIGMAS * pot_sigma_centi).max(TABLE_MIN_MARGIN_CENTI);
+        let cap = i64::from(MAX_ERROR_CENTI);
+        let mut t = PotErrorTable::default();
+        let mut worst = 0;
+        for (b, e) in self.pot_err_centi.iter().enumerate() {
+            if self.visited & (1 << b) != 0 {
+                t.centi[b] = (i64::from(*e) + margin).min(cap) as u16;
+                worst = worst.max(t.centi[b]);
+            }
+        }
+        let fixed = (i64::from(self.cfg.pot_tolerance_counts) * 100).min(cap) as u16;
+        for (b, e) in t.centi.iter_mut().enumerate() {
+            if self.visited & (1 << b) == 0 {
+                *e = worst.max(fixed);
+            }
+        }
+        t
     }
 
     /// The final tick: the estimates from the sums (the only divisions).
@@ -764,36 +927,18 @@ impl Calibration {
         let visc_unm = (b_q32 * (w_plus - w_minus) / 2) >> 32;
         let j_link = j_sum / n_used - i128::from(self.cfg.gear_inertia_nano);
         // Pot against the encoder over the moves' steady parts (pooled slope).
-        let (mut sxx, mut sxy, mut syy, mut nsq) = (0i128, 0, 0, 0);
-        for m in self
-            .moves
-            .iter()
-            .filter(|m| m.n_ss >= i64::from(MIN_STEADY))
-        {
-            // Centre each move on its own means (the free play shifts the intercepts).
-            let nn = i128::from(m.n_ss);
-            let (mx, my) = (i128::from(m.sx), i128::from(m.sy));
-            sxx += i128::from(m.sxx) * nn - mx * mx;
-            sxy += i128::from(m.sxy) * nn - mx * my;
-            syy += i128::from(m.syy) * nn - my * my;
-            nsq += nn * nn;
-        }
+        let (sxx, sxy, syy, nsq) = pooled(&self.moves);
         if sxx <= 0 {
             return self.fail(Failure::PotDead);
         }
         let slope_q32 = (sxy << 32) / sxx; // raw pot counts per raw encoder count
-                                           // Nominal: (1024/300°)/(cpt/360°) pot counts per encoder count.
-        let nominal_q32 = ((i128::from(POT_COUNTS) * 360) << 32)
-            / (i128::from(POT_SPAN_DEG) * i128::from(self.cfg.encoder_counts_per_turn));
-        let gain_q16 = (slope_q32.abs() << 16) / nominal_q32.max(1);
+        let gain_q16 =
+            (slope_q32.abs() << 16) / nominal_slope_q32(self.cfg.encoder_counts_per_turn);
         let pot_dir = Sign::of((slope_q32 * i128::from(self.cfg.encoder_direction.value())) as i64);
         // Residual variance of the pot about the fitted lines, ×10⁴ counts².
         let resid = (syy - ((slope_q32 * sxy) >> 32)).max(0) * 10_000 / nsq.max(1);
         // Free play: the + and − moves' intercepts at the pooled slope, canonical.
-        let intercept = |m: &Move| {
-            let nn = i128::from(m.n_ss).max(1);
-            ((i128::from(m.sy) << 32) - slope_q32 * i128::from(m.sx)) * 100 / nn
-        };
+        let intercept = |m: &Move| intercept_q32(m, slope_q32) * 100;
         let by_dir = |d: i32| {
             self.moves
                 .iter()
@@ -808,6 +953,10 @@ impl Calibration {
         let nr = i128::from(self.n_rest).max(1);
         let sa = i128::from(self.sum_adc);
         let var = (nr * i128::from(self.sum_adc2) - sa * sa) * 10_000 / (nr * nr);
+        let sp = i128::from(self.sum_pot);
+        let var_pot = (nr * i128::from(self.sum_pot2) - sp * sp) * 10_000 / (nr * nr);
+        let pot_sigma = crate::fixmath::isqrt_round(var_pot.max(0) as u128);
+        let pot_error = self.pot_error_table(i64::try_from(pot_sigma).unwrap_or(i64::MAX));
         let correction = SensorCorrection {
             motor_polarity: self.motor,
             encoder_direction: self.cfg.encoder_direction,
@@ -830,11 +979,39 @@ impl Calibration {
             gear_friction_unm: clamp32(tau_unm - visc_unm),
             link_inertia_nano: j_link.clamp(i128::from(i64::MIN), i128::from(i64::MAX)) as i64,
             pot_error_centi: crate::fixmath::isqrt_round(resid as u128) as i32,
+            pot_error,
             free_play_pot_centi: clamp32(fp),
             current_noise_centi: crate::fixmath::isqrt_round(var.max(0) as u128) as i32,
         });
         self.phase = Phase::Finished;
         self.progress = Progress::Done;
         None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::control::MotorParams;
+
+    #[test]
+    fn unvisited_bins_get_the_worst_visited_entry_or_the_fixed_tolerance() {
+        let cfg = CalibrationConfig::new(&Design::paper(), &MotorParams::AX12A, Sign::Plus, 4096)
+            .unwrap();
+        let mut c = Calibration::new(&cfg);
+        c.pot_err_centi[6] = 180;
+        c.pot_err_centi[7] = 420;
+        c.visited = (1 << 6) | (1 << 7);
+        // σ = 0.4 count: margin 3σ = 120 centi.
+        let t = c.pot_error_table(40);
+        assert_eq!((t.centi[6], t.centi[7]), (300, 540));
+        assert!(t.centi.iter().enumerate().all(|(b, &e)| b == 6 || e == 540));
+        // A quiet pot: the margin's floor, and the fixed 3 counts where nothing was seen.
+        c.pot_err_centi[7] = 100;
+        let t = c.pot_error_table(0);
+        assert_eq!((t.centi[6], t.centi[7], t.centi[0]), (230, 150, 300));
+        // Entries are capped at the table's bound.
+        c.pot_err_centi[6] = u16::MAX;
+        assert_eq!(c.pot_error_table(0).max_centi(), MAX_ERROR_CENTI);
     }
 }
