@@ -129,20 +129,22 @@ fn record(r: &CalibrationResult) -> Calibration {
     let offset = ((i64::from(c.current_offset_q16) + (1 << 15)) >> 16) - i64::from(ADC_MID);
     let pot_offset = ((i64::from(c.pot_center_q16) + (1 << 15)) >> 16) - i64::from(POT_CENTER);
     Calibration {
-        motor_polarity: c.motor_polarity.value() as i8,
-        encoder_direction: c.encoder_direction.value() as i8,
-        pot_direction: c.pot_direction.value() as i8,
-        current_offset_counts: offset.clamp(-i64::from(ADC_MID), i64::from(ADC_MID)) as i16,
-        pot_offset_counts: pot_offset as i16,
-        resistance_mohm: sat_u32(r.resistance_mohm.into()),
-        back_emf_uv_s_per_rad: sat_u32(r.back_emf_uv_s_per_rad.into()),
-        gear_friction_unm: sat_u32(r.gear_friction_unm.into()),
-        // kg·m² × 10⁹ → kg·mm² (× 10⁶), rounded, at least the controller's minimum.
-        link_inertia_kg_mm2: sat_u32((r.link_inertia_nano + 500) / 1000)
-            .max(model::control::MIN_INERTIA as u32),
-        stiffness_mnm_per_rad: None,
-        clutch_length_um: None,
-        stiffness_uncertainty_permille: 1000,
+        wire: protocol::Calibration {
+            motor_polarity: c.motor_polarity.value() as i8,
+            encoder_direction: c.encoder_direction.value() as i8,
+            pot_direction: c.pot_direction.value() as i8,
+            current_offset_counts: offset.clamp(-i64::from(ADC_MID), i64::from(ADC_MID)) as i16,
+            pot_offset_counts: pot_offset as i16,
+            resistance_mohm: sat_u32(r.resistance_mohm.into()),
+            back_emf_uv_s_per_rad: sat_u32(r.back_emf_uv_s_per_rad.into()),
+            gear_friction_unm: sat_u32(r.gear_friction_unm.into()),
+            // kg·m² × 10⁹ → kg·mm² (× 10⁶), rounded, at least the controller's minimum.
+            link_inertia_kg_mm2: sat_u32((r.link_inertia_nano + 500) / 1000)
+                .max(model::control::MIN_INERTIA as u32),
+            stiffness_mnm_per_rad: None,
+            clutch_length_um: None,
+            stiffness_uncertainty_permille: 1000,
+        },
         encoder_counts_per_turn: c.encoder_counts_per_turn,
         pot_gain_ppm: q16_ppm(c.pot_gain_q16),
         current_gain_ppm: q16_ppm(c.current_gain_q16),
@@ -239,7 +241,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
     pub(crate) fn calibration_report(&mut self) -> CalibrationReport {
         CalibrationReport {
             progress: self.actuator.lock(|a| a.calibration.progress),
-            calibration: self.service.calibration().map(|c| c.wire()),
+            calibration: self.service.calibration().map(|c| c.wire),
         }
     }
 
@@ -253,11 +255,12 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
     ) -> Result<(), ErrorCode> {
         let mut config = self.service.config;
         config.motor.resistance_ohm =
-            fixed::types::I32F32::from_bits(crate::milli_to_q32(cal.resistance_mohm.into()));
-        config.motor.back_emf =
-            fixed::types::I32F32::from_bits(crate::micro_to_q32(cal.back_emf_uv_s_per_rad.into()));
+            fixed::types::I32F32::from_bits(crate::milli_to_q32(cal.wire.resistance_mohm.into()));
+        config.motor.back_emf = fixed::types::I32F32::from_bits(crate::micro_to_q32(
+            cal.wire.back_emf_uv_s_per_rad.into(),
+        ));
         config.link_inertia =
-            Inertia::from_int(i32::try_from(cal.link_inertia_kg_mm2).unwrap_or(i32::MAX));
+            Inertia::from_int(i32::try_from(cal.wire.link_inertia_kg_mm2).unwrap_or(i32::MAX));
         let correction = correction.unwrap_or_else(|| {
             crate::correction::sensor_correction(cal, &self.service.supervision)
         });

@@ -83,7 +83,7 @@ fn a_calibration_runs_from_disabled_and_its_result_drives_the_controller() {
         i64::from(c.link_inertia_kg_mm2)
     );
     // Without a store the calibration is in force until the next boot.
-    assert_eq!(b.service.calibration().map(|s| s.wire()), Some(c));
+    assert_eq!(b.service.calibration().map(|s| s.wire), Some(c));
     // Its pot error table is kept and sizes the supervisor's deflection check.
     let table = b.service.calibration().and_then(|s| s.pot_error_centi);
     assert!(table.is_some());

@@ -168,31 +168,12 @@ impl Record for Config {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Calibration {
-    /// Motor polarity, ±1 (−1: the bridge's sense is reversed in software).
-    pub motor_polarity: i8,
-    /// Link encoder direction, ±1.
-    pub encoder_direction: i8,
-    /// Gear potentiometer direction, ±1.
-    pub pot_direction: i8,
-    /// Current-sense offset, ADC counts, |·| ≤ [`CURRENT_OFFSET_MAX`].
-    pub current_offset_counts: i16,
-    /// Pot-to-encoder alignment offset, pot counts, |·| ≤ [`POT_OFFSET_MAX`].
-    pub pot_offset_counts: i16,
-    /// Motor winding resistance, mΩ, > 0.
-    pub resistance_mohm: u32,
-    /// Back-EMF constant, µV·s/rad, > 0.
-    pub back_emf_uv_s_per_rad: u32,
-    /// Gear friction torque at the output, µN·m.
-    pub gear_friction_unm: u32,
-    /// Link inertia, kg·mm², as [`Config::link_inertia_kg_mm2`].
-    pub link_inertia_kg_mm2: u32,
-    /// Identified joint stiffness, mN·m/rad; `None` where the sensors cannot resolve it.
-    pub stiffness_mnm_per_rad: Option<u32>,
-    /// Clutch length from that stiffness, µm, in [`CLUTCH_MIN_UM`]..=[`CLUTCH_MAX_UM`];
-    /// `None` where the stiffness is not resolved.
-    pub clutch_length_um: Option<u32>,
-    /// Relative 1-σ uncertainty of the stiffness, ‰, ≤ 1000.
-    pub stiffness_uncertainty_permille: u16,
+    /// What the host link reports ([`protocol::Calibration`]: signs, offsets, the motor
+    /// and link parameters, the stiffness); the fields below stay on the board. Postcard
+    /// writes a nested struct as its fields in order: the stored layout is version 1's
+    /// fields followed by version 2's, so a change of `protocol::Calibration` is a new
+    /// version of this record.
+    pub wire: protocol::Calibration,
     /// Link encoder counts per turn, 16..=16384 (the timer's count per turn: 4 per pulse
     /// of an incremental output, e.g. 4000 for an AS5047P's factory 1000 pulses).
     pub encoder_counts_per_turn: u16,
@@ -208,65 +189,12 @@ pub struct Calibration {
     pub pot_error_centi: Option<[u16; POT_ERROR_BINS]>,
 }
 
-impl Calibration {
-    /// What the host link reports of it ([`protocol::Calibration`]: the fields a user
-    /// reads; the gains, counts per turn and pot table stay on the board).
-    #[must_use]
-    pub const fn wire(&self) -> protocol::Calibration {
-        protocol::Calibration {
-            motor_polarity: self.motor_polarity,
-            encoder_direction: self.encoder_direction,
-            pot_direction: self.pot_direction,
-            current_offset_counts: self.current_offset_counts,
-            pot_offset_counts: self.pot_offset_counts,
-            resistance_mohm: self.resistance_mohm,
-            back_emf_uv_s_per_rad: self.back_emf_uv_s_per_rad,
-            gear_friction_unm: self.gear_friction_unm,
-            link_inertia_kg_mm2: self.link_inertia_kg_mm2,
-            stiffness_mnm_per_rad: self.stiffness_mnm_per_rad,
-            clutch_length_um: self.clutch_length_um,
-            stiffness_uncertainty_permille: self.stiffness_uncertainty_permille,
-        }
-    }
-}
-
 /// Lowest pot or current-sense gain, ppm (0.5).
 pub const GAIN_MIN_PPM: u32 = 500_000;
 /// Highest pot or current-sense gain, ppm (2).
 pub const GAIN_MAX_PPM: u32 = 2_000_000;
 /// One, ppm: the gain of a nominal sensor.
 pub const GAIN_ONE_PPM: u32 = 1_000_000;
-
-/// [`Calibration`] as schema version 1 wrote it (before the encoder's counts per turn, the
-/// pot and current gains and the pot's error table); read only, by [`Record::migrate`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-struct CalibrationV1 {
-    /// Motor polarity, ±1 (−1: the bridge's sense is reversed in software).
-    motor_polarity: i8,
-    /// Link encoder direction, ±1.
-    encoder_direction: i8,
-    /// Gear potentiometer direction, ±1.
-    pot_direction: i8,
-    /// Current-sense offset, ADC counts, |·| ≤ [`CURRENT_OFFSET_MAX`].
-    current_offset_counts: i16,
-    /// Pot-to-encoder alignment offset, pot counts, |·| ≤ [`POT_OFFSET_MAX`].
-    pot_offset_counts: i16,
-    /// Motor winding resistance, mΩ, > 0.
-    resistance_mohm: u32,
-    /// Back-EMF constant, µV·s/rad, > 0.
-    back_emf_uv_s_per_rad: u32,
-    /// Gear friction torque at the output, µN·m.
-    gear_friction_unm: u32,
-    /// Link inertia, kg·mm², as [`Config::link_inertia_kg_mm2`].
-    link_inertia_kg_mm2: u32,
-    /// Identified joint stiffness, mN·m/rad; `None` where the sensors cannot resolve it.
-    stiffness_mnm_per_rad: Option<u32>,
-    /// Clutch length from that stiffness, µm, in [`CLUTCH_MIN_UM`]..=[`CLUTCH_MAX_UM`];
-    /// `None` where the stiffness is not resolved.
-    clutch_length_um: Option<u32>,
-    /// Relative 1-σ uncertainty of the stiffness, ‰, ≤ 1000.
-    stiffness_uncertainty_permille: u16,
-}
 
 /// Largest |current-sense offset|, ADC counts: half the 12-bit scale.
 pub const CURRENT_OFFSET_MAX: i16 = model::sensors::ADC_MID as i16;
@@ -286,23 +214,13 @@ impl Record for Calibration {
                 current: Self::VERSION,
             });
         }
-        let v1: CalibrationV1 = match postcard::take_from_bytes(body) {
+        // Version 1 wrote exactly the host link's fields.
+        let v1: protocol::Calibration = match postcard::take_from_bytes(body) {
             Ok((v, [])) => v,
             _ => return Err(Rejection::Undecodable),
         };
         Ok(Calibration {
-            motor_polarity: v1.motor_polarity,
-            encoder_direction: v1.encoder_direction,
-            pot_direction: v1.pot_direction,
-            current_offset_counts: v1.current_offset_counts,
-            pot_offset_counts: v1.pot_offset_counts,
-            resistance_mohm: v1.resistance_mohm,
-            back_emf_uv_s_per_rad: v1.back_emf_uv_s_per_rad,
-            gear_friction_unm: v1.gear_friction_unm,
-            link_inertia_kg_mm2: v1.link_inertia_kg_mm2,
-            stiffness_mnm_per_rad: v1.stiffness_mnm_per_rad,
-            clutch_length_um: v1.clutch_length_um,
-            stiffness_uncertainty_permille: v1.stiffness_uncertainty_permille,
+            wire: v1,
             encoder_counts_per_turn: model::sensors::ENCODER_COUNTS,
             pot_gain_ppm: GAIN_ONE_PPM,
             current_gain_ppm: GAIN_ONE_PPM,
@@ -312,32 +230,35 @@ impl Record for Calibration {
 
     fn check(&self) -> Result<(), &'static str> {
         let sign = |s: i8| s == 1 || s == -1;
-        if !(sign(self.motor_polarity) && sign(self.encoder_direction) && sign(self.pot_direction))
+        if !(sign(self.wire.motor_polarity)
+            && sign(self.wire.encoder_direction)
+            && sign(self.wire.pot_direction))
         {
             return Err("polarity or direction not ±1");
         }
-        if self.current_offset_counts.unsigned_abs() > CURRENT_OFFSET_MAX.unsigned_abs()
-            || self.pot_offset_counts.unsigned_abs() > POT_OFFSET_MAX.unsigned_abs()
+        if self.wire.current_offset_counts.unsigned_abs() > CURRENT_OFFSET_MAX.unsigned_abs()
+            || self.wire.pot_offset_counts.unsigned_abs() > POT_OFFSET_MAX.unsigned_abs()
         {
             return Err("sensor offset beyond half scale");
         }
-        if self.resistance_mohm == 0 || self.back_emf_uv_s_per_rad == 0 {
+        if self.wire.resistance_mohm == 0 || self.wire.back_emf_uv_s_per_rad == 0 {
             return Err("resistance or back-EMF constant 0");
         }
         let inertia = model::control::MIN_INERTIA..=model::control::MAX_INERTIA;
-        if !i32::try_from(self.link_inertia_kg_mm2).is_ok_and(|j| inertia.contains(&j)) {
+        if !i32::try_from(self.wire.link_inertia_kg_mm2).is_ok_and(|j| inertia.contains(&j)) {
             return Err("link inertia outside 1..=1000000 kg·mm²");
         }
-        if self.stiffness_mnm_per_rad == Some(0) {
+        if self.wire.stiffness_mnm_per_rad == Some(0) {
             return Err("stiffness 0");
         }
         if self
+            .wire
             .clutch_length_um
             .is_some_and(|l| !(CLUTCH_MIN_UM..=CLUTCH_MAX_UM).contains(&l))
         {
             return Err("clutch length out of range");
         }
-        if self.stiffness_uncertainty_permille > 1000 {
+        if self.wire.stiffness_uncertainty_permille > 1000 {
             return Err("stiffness uncertainty above 1000 ‰");
         }
         if !(16..=16384).contains(&self.encoder_counts_per_turn) {
@@ -593,7 +514,8 @@ mod tests {
 
     #[test]
     fn a_version_1_calibration_migrates_with_the_nominal_sensors() {
-        let v1 = CalibrationV1 {
+        // Version 1 wrote the host link's fields (`protocol::Calibration`), nothing more.
+        let v1 = protocol::Calibration {
             motor_polarity: -1,
             encoder_direction: 1,
             pot_direction: -1,
@@ -613,9 +535,9 @@ mod tests {
         let cal: Calibration = decode(&bytes[..1 + n]).unwrap();
         assert_eq!(
             (
-                cal.motor_polarity,
-                cal.pot_offset_counts,
-                cal.clutch_length_um
+                cal.wire.motor_polarity,
+                cal.wire.pot_offset_counts,
+                cal.wire.clutch_length_um
             ),
             (-1, 7, Some(3_000))
         );
