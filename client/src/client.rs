@@ -531,26 +531,42 @@ impl Client {
         }
     }
 
+    /// [`Client::request`], asked again 1 ms apart while the board answers `busy` (a state
+    /// that ends by itself: its boot window, its first control tick), for up to `wait`.
+    ///
+    /// # Errors
+    /// As [`Client::request`]; the last `busy` refusal if the board is still busy after
+    /// `wait`.
+    pub fn request_while_busy(&mut self, req: Request, wait: Duration) -> Result<Reply> {
+        let start = Instant::now();
+        loop {
+            match self.request(req) {
+                Err(Error::Refused {
+                    code: ErrorCode::Busy,
+                    ..
+                }) if start.elapsed() < wait => {
+                    self.wait(Duration::from_millis(1))?;
+                }
+                other => return other,
+            }
+        }
+    }
+
     /// [`Request::Enable`]: motor on, holding the current position (refused while a fault
     /// is latched). A board that answers `busy` (its boot window: the encoder is being
-    /// aligned to the pot with the motor off, docs/calibration.md) is asked again, 1 ms
-    /// apart, for up to [`ENABLE_BUSY_WAIT`].
+    /// aligned to the pot with the motor off, docs/calibration.md) is asked again for up
+    /// to [`ENABLE_BUSY_WAIT`] ([`Client::request_while_busy`]).
     ///
     /// # Errors
     /// As [`Client::ping`]; the last refusal if the board is still busy after the wait (a
     /// calibration running).
     pub fn enable(&mut self) -> Result<()> {
-        let start = Instant::now();
-        loop {
-            match self.request_ok(Request::Enable) {
-                Err(Error::Refused {
-                    code: ErrorCode::Busy,
-                    ..
-                }) if start.elapsed() < ENABLE_BUSY_WAIT => {
-                    self.wait(Duration::from_millis(1))?;
-                }
-                other => return other,
-            }
+        match self.request_while_busy(Request::Enable, ENABLE_BUSY_WAIT)? {
+            Reply::Ok => Ok(()),
+            reply => Err(Error::UnexpectedReply {
+                request: request_name(&Request::Enable),
+                reply,
+            }),
         }
     }
 

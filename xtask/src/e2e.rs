@@ -112,8 +112,6 @@ pub fn run(board: Board, elf: &Path) -> Result<Report> {
     client
         .wait_ready(Duration::from_secs(10), Duration::from_millis(50))
         .map_err(|e| anyhow!("the served firmware did not answer: {e}"))?;
-    // The boot window (encoder aligned to the pot, 32 ms, enable refused until then).
-    client.wait(Duration::from_millis(100))?;
 
     let result = session(&mut client, &mut garbage_line);
     drop(client);

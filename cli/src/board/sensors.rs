@@ -127,31 +127,22 @@ const FIRST_TICK_WAIT: Duration = Duration::from_millis(200);
 /// The raw readings of the last control tick; waits out a board whose control tick has
 /// not run yet.
 fn read(s: &mut Session) -> CliResult<RawSensors> {
-    let start = Instant::now();
-    loop {
-        match s.client.request(Request::GetSensors) {
-            Ok(client::Reply::Sensors(r)) => return Ok(r),
-            Err(client::Error::Refused {
-                code: ErrorCode::Busy,
-                ..
-            }) => {
-                if start.elapsed() >= FIRST_TICK_WAIT {
-                    return Err(CliError::runtime(format!(
-                        "the board had no reading within {} ms: has its control loop started?",
-                        FIRST_TICK_WAIT.as_millis()
-                    )));
-                }
-                s.client
-                    .wait(Duration::from_millis(1))
-                    .map_err(|e| s.fail(&e))?;
-            }
-            Ok(other) => {
-                return Err(CliError::runtime(format!(
-                    "unexpected reply to get-sensors: {other:?}"
-                )))
-            }
-            Err(e) => return Err(s.fail(&e)),
-        }
+    match s
+        .client
+        .request_while_busy(Request::GetSensors, FIRST_TICK_WAIT)
+    {
+        Ok(client::Reply::Sensors(r)) => Ok(r),
+        Err(client::Error::Refused {
+            code: ErrorCode::Busy,
+            ..
+        }) => Err(CliError::runtime(format!(
+            "the board had no reading within {} ms: has its control loop started?",
+            FIRST_TICK_WAIT.as_millis()
+        ))),
+        Ok(other) => Err(CliError::runtime(format!(
+            "unexpected reply to get-sensors: {other:?}"
+        ))),
+        Err(e) => Err(s.fail(&e)),
     }
 }
 
