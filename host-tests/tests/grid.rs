@@ -63,6 +63,9 @@ fn sweep(label: &str, off_nominal: bool, seed_offset: u64) {
         started.elapsed().as_secs_f64()
     );
     let names = outcomes[0].figures().map(|f| f.0);
+    if let Ok(path) = std::env::var("VSA_GRID_DUMP") {
+        dump(&format!("{path}.{seed}.tsv"), &names, &outcomes);
+    }
     for o in OPEN {
         assert!(names.contains(o), "OPEN names an unknown metric: {o}");
     }
@@ -111,6 +114,23 @@ fn sweep(label: &str, off_nominal: bool, seed_offset: u64) {
         }
     }
     assert!(failed.is_empty(), "{label}: limits violated: {failed:?}");
+}
+
+/// Writes one line per case (its figures, then the case) for tuning: `VSA_GRID_DUMP=PREFIX`
+/// writes `PREFIX.SEED.tsv`.
+fn dump(path: &str, names: &[&str], outcomes: &[Outcome]) {
+    let mut text = format!("index\tload_nm\t{}\tcase\n", names.join("\t"));
+    for o in outcomes {
+        let values: Vec<String> = o.figures().iter().map(|f| format!("{:.3}", f.1)).collect();
+        text.push_str(&format!(
+            "{}\t{:.3}\t{}\t{}\n",
+            o.index,
+            o.case.load_nm,
+            values.join("\t"),
+            o.case
+        ));
+    }
+    std::fs::write(path, text).expect("VSA_GRID_DUMP writable");
 }
 
 #[test]
