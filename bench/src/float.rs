@@ -38,7 +38,7 @@ use model::control::schedule::{
     CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM, IMPACT_SPEED_FRACTION,
     OBSERVER_RATIO, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM, REST_ZONE_FREE_PLAYS,
 };
-use model::control::{Command, Config, Schedule};
+use model::control::{dash, Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
 use model::servo::{BridgeDemand, TickInput};
 use model::supervisor::{Fault, FaultCode, FaultSet, Supervisor};
@@ -276,6 +276,31 @@ enum Mode {
         phase: f32,
         dphase: f32,
     },
+    /// The raw step's profile (`model::control::dash`).
+    Dash {
+        target: f32,
+        sign: f32,
+        speed: f32,
+        accel: f32,
+        brake: f32,
+        top: f32,
+        beta: f32,
+        braking: f32,
+    },
+}
+
+/// The raw step's limits in duty terms (`model::control::dash`): the accelerating duty
+/// and top duty, ‰, and the feed-forward gains ‰ per rad/s and per rad/s².
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FloatDashLimits {
+    /// `CURRENT_FRACTION` of the current limit in duty, ‰.
+    pub accel_duty: f32,
+    /// `VOLTAGE_FRACTION` of the duty limit, ‰.
+    pub top_duty: f32,
+    /// Rigid feed-forward, ‰ per rad/s.
+    pub ff_vel: f32,
+    /// Rigid feed-forward, ‰ per rad/s².
+    pub ff_acc: f32,
 }
 
 /// The reference generator in f32 (hold, raw step, minimum-jerk move, sine).
@@ -368,10 +393,73 @@ impl FloatTrajectory {
         }
     }
 
+    /// A raw step along the profile of `model::control::dash`, planned with `hold` ‰ of
+    /// integrator; a jump where the limits leave no acceleration.
+    pub fn step(&mut self, target: f32, l: &FloatDashLimits, hold: f32) {
+        let sign = if target >= self.pos { 1.0 } else { -1.0 };
+        let accel = (l.accel_duty - hold * sign) / l.ff_acc;
+        let brake = (l.accel_duty + hold * sign) / l.ff_acc;
+        let top = (l.top_duty - hold * sign) / l.ff_vel;
+        if accel <= 0.0 || brake <= 0.0 || top <= 0.0 {
+            self.mode = Mode::Hold;
+            self.pos = target;
+            self.vel = 0.0;
+            self.acc = 0.0;
+            return;
+        }
+        self.mode = Mode::Dash {
+            target,
+            sign,
+            speed: self.vel * sign,
+            accel,
+            brake,
+            top,
+            beta: l.ff_vel / l.ff_acc * DT,
+            braking: 0.0,
+        };
+    }
+
     /// Advances one tick and returns the new reference.
     pub fn advance(&mut self) -> FloatReference {
         match &mut self.mode {
             Mode::Hold => {}
+            Mode::Dash {
+                target,
+                sign,
+                speed,
+                accel,
+                brake,
+                top,
+                beta,
+                braking,
+            } => {
+                let s = *speed;
+                let left = (*target - self.pos) * *sign;
+                let mut next = if *braking == 0.0 {
+                    s + (*accel * DT).min(*beta * (*top - s))
+                } else {
+                    s - *braking * DT
+                };
+                if *braking == 0.0 && next > 0.0 && s > 0.0 {
+                    let left_after = left - (s + next) * DT / 2.0;
+                    if next * next >= 2.0 * *brake * left_after.max(0.0) {
+                        *braking = (s * s / (2.0 * left.max(1.0 / 65536.0))).max(1.0 / 65536.0);
+                        next = s - *braking * DT;
+                    }
+                }
+                let travel = (s + next) * DT / 2.0;
+                if *braking != 0.0 && (next <= 0.0 || left - travel <= 0.0) {
+                    self.pos = *target;
+                    self.vel = 0.0;
+                    self.acc = 0.0;
+                    self.mode = Mode::Hold;
+                } else {
+                    *speed = next;
+                    self.pos += travel * *sign;
+                    self.vel = next * *sign;
+                    self.acc = (next - s) * 1000.0 * *sign;
+                }
+            }
             Mode::Quintic {
                 p0,
                 target,
@@ -539,7 +627,20 @@ impl FloatController {
             }
             _ => (s.ff_vel, s.ff_acc),
         };
-        self.traj.command(cmd);
+        match cmd {
+            Command::Step { target } => {
+                let limits = FloatDashLimits {
+                    accel_duty: i32f32(dash::CURRENT_FRACTION.to_bits())
+                        * s.duty_per_amp
+                        * s.i_lim,
+                    top_duty: i32f32(dash::VOLTAGE_FRACTION.to_bits()) * s.duty_lim,
+                    ff_vel: s.ff_vel,
+                    ff_acc: s.ff_acc,
+                };
+                self.traj.step(i32f32(target.to_bits()), &limits, self.integ);
+            }
+            _ => self.traj.command(cmd),
+        }
         self.commanded = true;
     }
 

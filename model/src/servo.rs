@@ -396,9 +396,7 @@ impl Servo {
         };
         if let Some(imp) = self.impedance.as_ref().filter(|i| !i.approaching()) {
             // Within ±MAX_ANGLE_RAD by construction: never refused.
-            let _ = self.controller.command(Command::Step {
-                target: imp.reference(),
-            });
+            let _ = self.controller.jump(imp.reference());
         }
         let control = self.controller.step(&m);
         if let Some(imp) = &mut self.impedance {

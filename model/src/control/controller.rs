@@ -222,8 +222,28 @@ impl Controller {
     /// [`ControlError::TrajectoryOutOfRange`]; the running trajectory is untouched.
     pub fn command(&mut self, cmd: Command) -> Result<(), ControlError> {
         let ff = FeedForward::for_command(&self.sched, &self.config, &cmd)?;
-        self.traj.command(cmd)?;
+        match cmd {
+            // A raw step runs the near-time-optimal profile, planned with the load the
+            // integrator holds now.
+            Command::Step { target } => {
+                self.traj
+                    .step(target, &self.sched.dash, q32_to_q16(self.integ))?;
+            }
+            _ => self.traj.command(cmd)?,
+        }
         self.ff = ff;
+        self.commanded = true;
+        Ok(())
+    }
+
+    /// Moves the reference to `target` at once, without the raw step's profile: the
+    /// impedance command's per-tick reference ([`super::impedance`]).
+    ///
+    /// # Errors
+    /// [`ControlError::TrajectoryOutOfRange`]; the running trajectory is untouched.
+    pub fn jump(&mut self, target: Angle) -> Result<(), ControlError> {
+        self.traj.command(Command::Step { target })?;
+        self.ff = FeedForward::rigid(&self.sched);
         self.commanded = true;
         Ok(())
     }

@@ -9,7 +9,8 @@
 //! 3. coupling torque: current-based (current and gear velocity through the derivative
 //!    filter, so that the observer's jump on a duty step is no torque), blended with the
 //!    pot's deflection-based estimate by inverse variance;
-//! 4. reference r, ṙ, r̈ from [`trajectory`];
+//! 4. reference r, ṙ, r̈ from [`trajectory`] (a raw step along the near-time-optimal
+//!    profile of [`dash`]);
 //! 5. error e = r − θ_l, zero while r lies in the measured encoder count;
 //! 6. feed-forward of the rigid inverse model (the two-mass inverse for a sine,
 //!    [`sine_feedforward`]), plus the free-play and compliance
@@ -34,6 +35,7 @@
 
 pub mod config;
 pub mod controller;
+pub mod dash;
 pub mod error;
 pub mod gain;
 pub mod impedance;

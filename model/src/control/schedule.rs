@@ -7,6 +7,7 @@
 use fixed::types::{I32F32, I64F64};
 
 use super::config::{Config, Limits, PidGains};
+use super::dash::{self, DashGains};
 use super::error::ControlError;
 use super::gain::{Gain, Q16_ONE};
 use super::validate::validate;
@@ -169,6 +170,8 @@ pub struct Schedule {
     /// Pot reading at gear angle 0 and encoder reading at link angle 0, counts.
     pub(crate) pot_center: i32,
     pub(crate) encoder_zero: u16,
+    /// The raw step's profile constants.
+    pub(crate) dash: DashGains,
 }
 
 /// Control ticks per second (the loop runs at 1 kHz).
@@ -337,6 +340,22 @@ impl Schedule {
         let w_defl = to_gain(w_defl)?;
         let i_lim_q16 = to_q16(i_lim)?;
         let duty_per_amp = to_gain(mul(duty_per_volt, r)?)?;
+        let ff_vel = mul(duty_per_volt, add(ke, div(mul(r, bv)?, kt)?)?)?;
+        let ff_acc = div(mul(mul(duty_per_volt, r)?, p.j)?, kt)?;
+        let dash = DashGains {
+            accel_duty_q16: to_q16(mul(
+                wide(dash::CURRENT_FRACTION),
+                mul(mul(duty_per_volt, r)?, i_lim)?,
+            )?)?,
+            top_duty_q16: to_q16(mul(
+                wide(dash::VOLTAGE_FRACTION),
+                I64F64::from_num(lim.max_duty),
+            )?)?,
+            acc_per_duty: to_gain(div(I64F64::ONE, ff_acc)?)?,
+            vel_per_duty: to_gain(div(I64F64::ONE, ff_vel)?)?,
+            beta: to_gain(mul(div(ff_vel, ff_acc)?, dt)?)?,
+            dt: to_gain(dt)?,
+        };
         Ok(Schedule {
             setting,
             stiffness,
@@ -392,8 +411,8 @@ impl Schedule {
                 dt,
             )?)?,
             alpha: to_gain(alpha)?,
-            ff_vel: to_gain(mul(duty_per_volt, add(ke, div(mul(r, bv)?, kt)?)?)?)?,
-            ff_acc: to_gain(div(mul(mul(duty_per_volt, r)?, p.j)?, kt)?)?,
+            ff_vel: to_gain(ff_vel)?,
+            ff_acc: to_gain(ff_acc)?,
             ff_defl: to_gain(mul(mul(duty_per_volt, ke)?, ticks_per_s)?)?,
             j_link: to_gain(p.j_link)?,
             inv_k: to_gain(div(I64F64::ONE, k)?)?,
@@ -417,6 +436,7 @@ impl Schedule {
             duty_lim_q16: i32::from(lim.max_duty) * Q16_ONE,
             pot_center: i32::from(cfg.sensors.pot_center),
             encoder_zero: cfg.sensors.encoder_zero,
+            dash,
         })
     }
 
@@ -471,3 +491,4 @@ impl Schedule {
         self.setting.free_play()
     }
 }
+

@@ -24,6 +24,7 @@
 
 use fixed::types::I64F64;
 
+use super::dash::{Dash, DashGains};
 use super::error::ControlError;
 use super::gain::{q32_to_q16, sat_i32};
 use super::sine::{cos_q30, sin_q30};
@@ -44,7 +45,9 @@ pub const MAX_SINE_RAD_S: i32 = 315;
 pub enum Command {
     /// Hold the current reference position (velocity and acceleration drop to 0).
     Hold,
-    /// Raw step: the reference jumps to `target` (absolute link angle).
+    /// Raw step to `target` (absolute link angle) as fast as the actuator allows: through
+    /// [`Trajectory::step`] a profile planned from the limits ([`super::dash`]); through
+    /// [`Trajectory::command`] alone the reference jumps.
     Step {
         /// Absolute link angle, rad.
         target: Angle,
@@ -93,6 +96,7 @@ enum Mode {
         phase: u32,
         dphase: u32,
     },
+    Dash(Dash),
 }
 
 /// The reference generator (see the module docs).
@@ -198,6 +202,7 @@ impl Trajectory {
             Mode::Hold => self.pos,
             Mode::Quintic { target, .. } => target,
             Mode::Sine { center, .. } => center,
+            Mode::Dash(d) => d.target(),
         })
     }
 
@@ -280,6 +285,28 @@ impl Trajectory {
         };
         self.mode = mode;
         Ok(())
+    }
+
+    /// Starts a raw step to `target` along the profile of [`super::dash`], planned with
+    /// the schedule's `gains` and the duty the integrator holds (‰ Q16); where the limits
+    /// leave no acceleration the reference jumps ([`Trajectory::command`]).
+    ///
+    /// # Errors
+    /// As [`Trajectory::command`] for a target beyond ±[`MAX_ANGLE_RAD`].
+    pub(crate) fn step(
+        &mut self,
+        target: Angle,
+        gains: &DashGains,
+        hold_q16: i32,
+    ) -> Result<(), ControlError> {
+        check_angle(target)?;
+        match Dash::plan(gains, self.pos, self.vel, target.to_bits(), hold_q16) {
+            Some(d) => {
+                self.mode = Mode::Dash(d);
+                Ok(())
+            }
+            None => self.command(Command::Step { target }),
+        }
     }
 
     fn quintic(&self, target: Angle, duration_ms: u32) -> Result<Mode, ControlError> {
@@ -400,6 +427,15 @@ impl Trajectory {
                 self.pos = center.saturating_add(i64::from(off) << 16);
                 self.vel = sat_i32((i64::from(*vel_amp) * co) >> 30);
                 self.acc = sat_i32(-((i64::from(*acc_amp) * s) >> 30));
+            }
+            Mode::Dash(d) => {
+                let t = d.advance(self.pos);
+                self.pos = t.position;
+                self.vel = t.velocity_q16;
+                self.acc = t.acceleration_q16;
+                if t.done {
+                    self.mode = Mode::Hold;
+                }
             }
         }
         self.reference()
