@@ -289,14 +289,19 @@ enum Mode {
     },
 }
 
-/// The raw step's limits in duty terms (`model::control::dash`): the accelerating duty
-/// and top duty, ‰, and the feed-forward gains ‰ per rad/s and per rad/s².
+/// The raw step's limits in duty terms (`model::control::dash`): the current and duty
+/// limits, ‰, the fractions of their headroom the profile uses, and the feed-forward
+/// gains.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FloatDashLimits {
-    /// `CURRENT_FRACTION` of the current limit in duty, ‰.
-    pub accel_duty: f32,
-    /// `VOLTAGE_FRACTION` of the duty limit, ‰.
-    pub top_duty: f32,
+    /// The current limit in duty, ‰.
+    pub current_duty: f32,
+    /// The duty limit, ‰.
+    pub duty_lim: f32,
+    /// `CURRENT_FRACTION` and `VOLTAGE_FRACTION`.
+    pub current_fraction: f32,
+    /// See `current_fraction`.
+    pub voltage_fraction: f32,
     /// Rigid feed-forward, ‰ per rad/s.
     pub ff_vel: f32,
     /// Rigid feed-forward, ‰ per rad/s².
@@ -397,9 +402,9 @@ impl FloatTrajectory {
     /// integrator; a jump where the limits leave no acceleration.
     pub fn step(&mut self, target: f32, l: &FloatDashLimits, hold: f32) {
         let sign = if target >= self.pos { 1.0 } else { -1.0 };
-        let accel = (l.accel_duty - hold * sign) / l.ff_acc;
-        let brake = (l.accel_duty + hold * sign) / l.ff_acc;
-        let top = (l.top_duty - hold * sign) / l.ff_vel;
+        let accel = l.current_fraction * (l.current_duty - hold * sign) / l.ff_acc;
+        let brake = l.current_fraction * (l.current_duty + hold * sign) / l.ff_acc;
+        let top = l.voltage_fraction * (l.duty_lim - hold * sign) / l.ff_vel;
         if accel <= 0.0 || brake <= 0.0 || top <= 0.0 {
             self.mode = Mode::Hold;
             self.pos = target;
@@ -630,10 +635,10 @@ impl FloatController {
         match cmd {
             Command::Step { target } => {
                 let limits = FloatDashLimits {
-                    accel_duty: i32f32(dash::CURRENT_FRACTION.to_bits())
-                        * s.duty_per_amp
-                        * s.i_lim,
-                    top_duty: i32f32(dash::VOLTAGE_FRACTION.to_bits()) * s.duty_lim,
+                    current_duty: s.duty_per_amp * s.i_lim,
+                    duty_lim: s.duty_lim,
+                    current_fraction: i32f32(dash::CURRENT_FRACTION.to_bits()),
+                    voltage_fraction: i32f32(dash::VOLTAGE_FRACTION.to_bits()),
                     ff_vel: s.ff_vel,
                     ff_acc: s.ff_acc,
                 };

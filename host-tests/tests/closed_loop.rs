@@ -63,10 +63,12 @@ fn over_capacity_move_is_torque_limited_at_5_mm() {
     // Not a fault: the move completes and the link settles.
     assert!(m.settling_time_s.is_some() && m.steady_state_error_counts <= 1.0);
     assert!(m.steady_duty_span <= 1 && m.steady_count_span <= 1);
-    // A raw step of 1.5 rad against the load as well.
+    // A raw step of 1.5 rad against the load: its profile is planned within the current
+    // limit (docs/design.md §11, "Raw steps"), so no clamp needs to act; the beams stay
+    // below σ_allow and the link settles.
     let m = sim::run(&sim::scenario(5, sim::raw_step("1.5"), LOAD_NM));
     println!("{}", sim::describe("L = 5 mm, raw step 1.5 rad", &m));
-    assert!(m.torque_limited && m.peak_stress_ratio < 1.0);
+    assert!(m.peak_stress_ratio < 1.0);
     assert!(m.settling_time_s.is_some());
 }
 

@@ -5,9 +5,9 @@
 //! current limit until the supply's voltage binds, runs along the voltage limit (the
 //! speed approaches the no-load speed exponentially with the mechanical time constant
 //! τ_m = J·R/(k_t·k_e)) and brakes at the current limit. The profile is that with margins:
-//! the acceleration uses `CURRENT_FRACTION` of the current limit, the top speed
-//! `VOLTAGE_FRACTION` of the duty limit, both net of the load the integrator holds when
-//! the step is commanded, so that the feed-forward of the rigid model alone drives the
+//! the acceleration uses `CURRENT_FRACTION` of the current headroom, the top speed
+//! `VOLTAGE_FRACTION` of the duty headroom, both what the load the integrator holds when
+//! the step is commanded leaves, so that the feed-forward of the rigid model alone drives the
 //! actuator along it and the PID keeps the rest of the current and voltage for its
 //! corrections. In speed s along the step (rad/s), per tick:
 //!
@@ -17,36 +17,37 @@
 //! s ← s − a·dt,  a = s²/(2·d)                            (lands on the target)
 //! ```
 //!
-//! with a_acc = (f_i·u_i − σ·u_I)/ff_acc, a_brake = (f_i·u_i + σ·u_I)/ff_acc and
-//! s_top = (f_v·u_max − σ·u_I)/ff_vel in duty terms (u_i the current limit, u_max the
+//! with a_acc = f_i·(u_i − σ·u_I)/ff_acc, a_brake = f_i·(u_i + σ·u_I)/ff_acc and
+//! s_top = f_v·(u_max − σ·u_I)/ff_vel in duty terms (u_i the current limit, u_max the
 //! duty limit, u_I the integrator, ff_acc and ff_vel the feed-forward gains, σ the step's
-//! sign): the feed-forward duty ff_vel·s + ff_acc·a + u_I then stays within f_i of the
-//! current window and f_v of the duty limit.
+//! sign): the feed-forward duty ff_vel·s + ff_acc·a + u_I then leaves (1 − f_i) of the
+//! current headroom and (1 − f_v) of the duty headroom to the PID.
 //!
 //! Formats: speeds Q16 rad/s, accelerations Q16 rad/s², positions I32F32 rad bits.
 
 use super::gain::{q32_to_q16, sat_i32, Gain};
 
-/// Fraction of the current limit the profile's acceleration and braking use. Measured on
-/// the acceptance grid (seeds 1 / 1000001, 250 + 250 cases): 0.8 raised the runs with the
-/// beams above σ_allow from 6 to 9 (a heavy link's coupling overshoots a torque step) and
-/// the off-nominal overshoots from 101 to 115; 0.4 lowered them to 1 and 94 and the
-/// nominal overshoots from 55 to 27; 0.25–0.6 are within a few runs of 0.4.
-pub const CURRENT_FRACTION: fixed::types::I32F32 = fixed::types::I32F32::lit("0.4");
-/// Fraction of the duty limit the profile's top speed uses.
+/// Fraction of the current headroom (the current limit less the held load) the profile's
+/// acceleration and braking use. Measured on the acceptance grid (seeds 1 / 1000001, 250 +
+/// 250 cases; docs/design.md §11, "Raw steps"): larger fractions are faster but a heavy
+/// link's coupling overshoots each torque step (0.6: 3 and 20 runs above σ_allow; 0.25:
+/// 0 and 7), smaller ones lose raw steps to the time bound (0.2: 114 misses of 117).
+pub const CURRENT_FRACTION: fixed::types::I32F32 = fixed::types::I32F32::lit("0.25");
+/// Fraction of the duty headroom (the duty limit less the held load) the profile's top
+/// speed uses (0.7 and 0.95 measured within a few runs of it on the grid).
 pub const VOLTAGE_FRACTION: fixed::types::I32F32 = fixed::types::I32F32::lit("0.85");
 
 /// The per-configuration constants of the profile (part of the schedule).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct DashGains {
-    /// `CURRENT_FRACTION` of the current limit, ‰ Q16.
-    pub(crate) accel_duty_q16: i32,
-    /// `VOLTAGE_FRACTION` of the duty limit, ‰ Q16.
-    pub(crate) top_duty_q16: i32,
-    /// 1/ff_acc, rad/s² per ‰.
-    pub(crate) acc_per_duty: Gain,
-    /// 1/ff_vel, rad/s per ‰.
-    pub(crate) vel_per_duty: Gain,
+    /// The current limit in duty (R·i_lim), ‰ Q16.
+    pub(crate) current_duty_q16: i32,
+    /// The duty limit, ‰ Q16.
+    pub(crate) duty_lim_q16: i32,
+    /// `CURRENT_FRACTION`/ff_acc, rad/s² per ‰ of current headroom.
+    pub(crate) accel_per_duty: Gain,
+    /// `VOLTAGE_FRACTION`/ff_vel, rad/s per ‰ of duty headroom.
+    pub(crate) top_per_duty: Gain,
     /// dt/τ_m = dt·ff_vel/ff_acc per tick (the voltage-limited approach to s_top).
     pub(crate) beta: Gain,
     /// dt = 1 ms (rad/s → rad per tick, applied wide; rad/s² → rad/s per tick).
@@ -93,9 +94,10 @@ impl Dash {
     ) -> Option<Dash> {
         let sign = if target >= position { 1 } else { -1 };
         let hold = hold_q16.saturating_mul(sign);
-        let accel = g.acc_per_duty.apply(g.accel_duty_q16.saturating_sub(hold));
-        let brake = g.acc_per_duty.apply(g.accel_duty_q16.saturating_add(hold));
-        let top = g.vel_per_duty.apply(g.top_duty_q16.saturating_sub(hold));
+        // The headroom the held load leaves, in each direction.
+        let accel = g.accel_per_duty.apply(g.current_duty_q16.saturating_sub(hold));
+        let brake = g.accel_per_duty.apply(g.current_duty_q16.saturating_add(hold));
+        let top = g.top_per_duty.apply(g.duty_lim_q16.saturating_sub(hold));
         if accel <= 0 || brake <= 0 || top <= 0 {
             return None;
         }
