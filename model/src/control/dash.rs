@@ -138,10 +138,14 @@ impl Dash {
         self.target
     }
 
-    /// Advances one tick from `position`.
+    /// Advances one tick from `position`. Sign flips rather than products by the
+    /// direction, and the 64-bit products only where a square needs them: this runs
+    /// inside the control step's instruction budget.
     pub(crate) fn advance(&mut self, position: i64) -> DashTick {
         let s = self.speed;
-        let left = self.target.saturating_sub(position).saturating_mul(i64::from(self.sign));
+        let up = self.sign > 0;
+        let diff = self.target.saturating_sub(position);
+        let left = if up { diff } else { diff.saturating_neg() };
         let mut next = if self.braking == 0 {
             // The current limit or the voltage limit, whichever binds.
             let by_current = self.dt.apply(self.accel);
@@ -150,24 +154,22 @@ impl Dash {
         } else {
             s.saturating_sub(self.dt.apply(self.braking))
         };
-        // Distance left after this tick (trapezoidal rule), Q16 rad.
-        let travel = self.dt.apply_wide(s.saturating_add(next)) / 2;
-        let left_after = q32_to_q16(left.saturating_sub(travel));
+        // Distance covered in this tick (trapezoidal rule), Q32 rad.
+        let mut travel = self.dt.apply_wide(s.saturating_add(next)) >> 1;
         if self.braking == 0 && next > 0 && s > 0 {
             // Accelerating this tick would leave less than the braking distance,
             // s² ≥ 2·a_brake·d: brake from now on, at the deceleration that lands on the
-            // target, a = s²/(2·d) (one division per step, not per tick).
+            // target, a = s²/(2·d) (once per step).
+            let left_after = q32_to_q16(left.saturating_sub(travel)).max(0);
             let s2 = i64::from(next) * i64::from(next); // Q32, < 2⁶²
-            let need = 2 * i64::from(self.brake) * i64::from(left_after.max(0)); // Q32
-            if s2 >= need {
-                let s2 = i64::from(s) * i64::from(s); // Q32
+            if s2 >= 2 * i64::from(self.brake) * i64::from(left_after) {
+                let s2 = i64::from(s) * i64::from(s);
                 self.braking = div_q32_by_q16(s2, q32_to_q16(left).saturating_mul(2)).max(1);
                 next = s.saturating_sub(self.dt.apply(self.braking));
+                travel = self.dt.apply_wide(s.saturating_add(next)) >> 1;
             }
         }
-        let travel = self.dt.apply_wide(s.saturating_add(next)) / 2;
-        let done = self.braking != 0 && (next <= 0 || left.saturating_sub(travel) <= 0);
-        if done {
+        if self.braking != 0 && (next <= 0 || left <= travel) {
             return DashTick {
                 position: self.target,
                 velocity_q16: 0,
@@ -176,18 +178,24 @@ impl Dash {
             };
         }
         self.speed = next;
-        let sign = i64::from(self.sign);
+        let dv = next.saturating_sub(s).saturating_mul(1000); // rad/s² Q16
+        let (position, velocity_q16, acceleration_q16) = if up {
+            (position.saturating_add(travel), next, dv)
+        } else {
+            (
+                position.saturating_sub(travel),
+                next.saturating_neg(),
+                dv.saturating_neg(),
+            )
+        };
         DashTick {
-            position: position.saturating_add(travel.saturating_mul(sign)),
-            velocity_q16: next.saturating_mul(self.sign),
-            acceleration_q16: sat_i32(
-                i64::from(next.saturating_sub(s)) * 1000 * sign,
-            ),
+            position,
+            velocity_q16,
+            acceleration_q16,
             done: false,
         }
     }
 }
-
 
 #[cfg(test)]
 mod tests {
