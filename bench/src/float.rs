@@ -642,7 +642,8 @@ impl FloatController {
                     ff_vel: s.ff_vel,
                     ff_acc: s.ff_acc,
                 };
-                self.traj.step(i32f32(target.to_bits()), &limits, self.integ);
+                self.traj
+                    .step(i32f32(target.to_bits()), &limits, self.integ);
             }
             _ => self.traj.command(cmd),
         }

@@ -113,8 +113,12 @@ impl Dash {
         let sign = if target >= position { 1 } else { -1 };
         let hold = hold_q16.saturating_mul(sign);
         // The headroom the held load leaves, in each direction.
-        let accel = g.accel_per_duty.apply(g.current_duty_q16.saturating_sub(hold));
-        let brake = g.accel_per_duty.apply(g.current_duty_q16.saturating_add(hold));
+        let accel = g
+            .accel_per_duty
+            .apply(g.current_duty_q16.saturating_sub(hold));
+        let brake = g
+            .accel_per_duty
+            .apply(g.current_duty_q16.saturating_add(hold));
         let top = g.top_per_duty.apply(g.duty_lim_q16.saturating_sub(hold));
         if accel <= 0 || brake <= 0 || top <= 0 {
             return None;

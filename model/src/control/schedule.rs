@@ -485,5 +485,3 @@ impl Schedule {
         self.setting.free_play()
     }
 }
-
-
