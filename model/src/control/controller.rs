@@ -227,7 +227,7 @@ impl Controller {
             // integrator holds now.
             Command::Step { target } => {
                 self.traj
-                    .step(target, &self.sched.dash, q32_to_q16(self.integ))?;
+                    .step(target, &self.sched, q32_to_q16(self.integ))?;
             }
             _ => self.traj.command(cmd)?,
         }

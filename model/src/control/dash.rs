@@ -26,6 +26,7 @@
 //! Formats: speeds Q16 rad/s, accelerations Q16 rad/s², positions I32F32 rad bits.
 
 use super::gain::{q32_to_q16, sat_i32, Gain};
+use super::schedule::Schedule;
 
 /// Fraction of the current headroom (the current limit less the held load) the profile's
 /// acceleration and braking use. Measured on the acceptance grid (seeds 1 / 1000001, 250 +
@@ -37,21 +38,16 @@ pub const CURRENT_FRACTION: fixed::types::I32F32 = fixed::types::I32F32::lit("0.
 /// speed uses (0.7 and 0.95 measured within a few runs of it on the grid).
 pub const VOLTAGE_FRACTION: fixed::types::I32F32 = fixed::types::I32F32::lit("0.85");
 
-/// The per-configuration constants of the profile (part of the schedule).
+/// The per-configuration constants of the profile (part of the schedule; the current and
+/// duty limits and dt are the schedule's own).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct DashGains {
-    /// The current limit in duty (R·i_lim), ‰ Q16.
-    pub(crate) current_duty_q16: i32,
-    /// The duty limit, ‰ Q16.
-    pub(crate) duty_lim_q16: i32,
     /// `CURRENT_FRACTION`/ff_acc, rad/s² per ‰ of current headroom.
     pub(crate) accel_per_duty: Gain,
     /// `VOLTAGE_FRACTION`/ff_vel, rad/s per ‰ of duty headroom.
     pub(crate) top_per_duty: Gain,
     /// dt/τ_m = dt·ff_vel/ff_acc per tick (the voltage-limited approach to s_top).
     pub(crate) beta: Gain,
-    /// dt = 1 ms (rad/s → rad per tick, applied wide; rad/s² → rad/s per tick).
-    pub(crate) dt: Gain,
 }
 
 /// `num / den` for Q32 `num` ≥ 0 and Q16 `den` > 0, as Q16 (rounded down, saturating; 0 for
@@ -104,7 +100,7 @@ impl Dash {
     /// acceleration or braking (a load beyond the current limit): the reference then jumps.
     #[must_use]
     pub(crate) fn plan(
-        g: &DashGains,
+        sched: &Schedule,
         position: i64,
         velocity_q16: i32,
         target: i64,
@@ -113,13 +109,13 @@ impl Dash {
         let sign = if target >= position { 1 } else { -1 };
         let hold = hold_q16.saturating_mul(sign);
         // The headroom the held load leaves, in each direction.
-        let accel = g
-            .accel_per_duty
-            .apply(g.current_duty_q16.saturating_sub(hold));
-        let brake = g
-            .accel_per_duty
-            .apply(g.current_duty_q16.saturating_add(hold));
-        let top = g.top_per_duty.apply(g.duty_lim_q16.saturating_sub(hold));
+        let g = &sched.dash;
+        let current = sched.i_lim_duty_q16;
+        let accel = g.accel_per_duty.apply(current.saturating_sub(hold));
+        let brake = g.accel_per_duty.apply(current.saturating_add(hold));
+        let top = g
+            .top_per_duty
+            .apply(sched.duty_lim_q16.saturating_sub(hold));
         if accel <= 0 || brake <= 0 || top <= 0 {
             return None;
         }
@@ -131,7 +127,7 @@ impl Dash {
             brake,
             top,
             beta: g.beta,
-            dt: g.dt,
+            dt: sched.dt,
             braking: 0,
         })
     }

@@ -343,12 +343,9 @@ impl Schedule {
         let ff_vel = mul(duty_per_volt, add(ke, div(mul(r, bv)?, kt)?)?)?;
         let ff_acc = div(mul(mul(duty_per_volt, r)?, p.j)?, kt)?;
         let dash = DashGains {
-            current_duty_q16: to_q16(mul(mul(duty_per_volt, r)?, i_lim)?)?,
-            duty_lim_q16: i32::from(lim.max_duty) * Q16_ONE,
             accel_per_duty: to_gain(div(wide(dash::CURRENT_FRACTION), ff_acc)?)?,
             top_per_duty: to_gain(div(wide(dash::VOLTAGE_FRACTION), ff_vel)?)?,
             beta: to_gain(mul(div(ff_vel, ff_acc)?, dt)?)?,
-            dt: to_gain(dt)?,
         };
         Ok(Schedule {
             setting,

@@ -24,9 +24,10 @@
 
 use fixed::types::I64F64;
 
-use super::dash::{Dash, DashGains};
+use super::dash::Dash;
 use super::error::ControlError;
 use super::gain::{q32_to_q16, sat_i32};
+use super::schedule::Schedule;
 use super::sine::{cos_q30, sin_q30};
 use crate::units::{Angle, Frequency};
 
@@ -288,7 +289,7 @@ impl Trajectory {
     }
 
     /// Starts a raw step to `target` along the profile of [`super::dash`], planned with
-    /// the schedule's `gains` and the duty the integrator holds (‰ Q16); where the limits
+    /// the schedule `sched` and the duty the integrator holds (‰ Q16); where the limits
     /// leave no acceleration the reference jumps ([`Trajectory::command`]).
     ///
     /// # Errors
@@ -296,11 +297,11 @@ impl Trajectory {
     pub(crate) fn step(
         &mut self,
         target: Angle,
-        gains: &DashGains,
+        sched: &Schedule,
         hold_q16: i32,
     ) -> Result<(), ControlError> {
         check_angle(target)?;
-        match Dash::plan(gains, self.pos, self.vel, target.to_bits(), hold_q16) {
+        match Dash::plan(sched, self.pos, self.vel, target.to_bits(), hold_q16) {
             Some(d) => {
                 self.mode = Mode::Dash(d);
                 Ok(())
