@@ -23,9 +23,6 @@
 //!   lower bound is conservative, and at 1.40 it let a clutch 1 mm long at 5 mm (1.73×)
 //!   through in three of four motions (docs/calibration.md).
 //!
-//! The sums are kept per block of 8 ticks and folded once a block (the per-tick work is
-//! i32 products; the 64-bit work falls on two ticks of each block).
-//!
 //! Evidence: a decision needs Σλⁿτ² ≥ (τ_ev)²·256, τ_ev the torque that deflects the
 //! configured beams by one pot count: the torque must have been large enough, for about
 //! the forgetting time, to move the pot. With a 0.29° pot that is the case at the soft
@@ -40,25 +37,19 @@ use crate::sensors::POT_COUNT_Q32;
 pub const MISMATCH_RATIO: i64 = 5 << 14;
 /// Compliance ratio below which the configured stiffness is confirmed, Q16: 1.1.
 pub const CONFIRM_RATIO: i64 = 72_090;
-/// Ticks per block: the sums take a block's samples at once.
-const BLOCK: u8 = 8;
-/// The block tick of the decision (the sums are folded at tick 0).
-const DECIDE: u8 = BLOCK / 2;
-/// Forgetting shift per block: λ = 1 − 2⁻⁵ a block of 8 ticks, a time constant of 256
-/// ticks.
-const FORGET: u32 = 5;
+/// Forgetting shift: λ = 1 − 2⁻⁸.
+const FORGET: u32 = 8;
 /// Low-pass shift of φ and τ before the regression (α = 1/16).
 const SMOOTH: u32 = 4;
-/// Bounds of the regression's samples: |τ| < 4 N·m (Q12: 2¹⁴), |φ_e| ≤ 0.125 rad (Q16:
-/// 2¹³). With them |τ·φ| < 2²⁷ and τ² < 2²⁸: a block's sums (8 samples) fit an i32, the
-/// forgetting sums stay below 2³⁶ (2⁸ samples' worth), s_tp·2²⁴ below 2⁶⁰ and a
-/// threshold (< 2²⁴) times s_tt below 2⁶⁰: plain i64 arithmetic, no overflow (the
-/// clamps make the bounds hold).
-const TAU_MAX_Q12: i32 = (1 << 14) - 1;
+/// Bounds of the regression's samples: |τ| ≤ 4 N·m (Q12: 2¹⁴), |φ_e| ≤ 0.125 rad (Q16:
+/// 2¹³). With them |τ·φ| < 2²⁷ and τ² ≤ 2²⁸ fit an i32, the sums stay below 2³⁶
+/// (2⁸ samples' worth), s_tp·2²⁴ below 2⁶⁰ and a threshold (< 2²³) times s_tt below 2⁵⁹:
+/// plain i64 arithmetic, no overflow (the clamps make the bounds hold).
+const TAU_MAX_Q12: i32 = 1 << 14;
 const PHI_MAX_Q16: i32 = 1 << 13;
-/// Consecutive blocks (64 ticks) the estimate must stay beyond the mismatch ratio (a
-/// violent transient, e.g. a raw step's impacts, is not evidence).
-const MISMATCH_BLOCKS: u16 = 8;
+/// Consecutive ticks the estimate must stay beyond the mismatch ratio (a violent
+/// transient, e.g. a raw step's impacts, is not evidence).
+const MISMATCH_TICKS: u16 = 64;
 
 /// What the monitor concluded so far.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -117,7 +108,7 @@ impl ClutchLimits {
         let compliance_28 = ((1i128 << 92) / k_bits).clamp(1, 1 << 23) as i64;
         // τ_ev (Q12) = one pot count / c = POT_COUNT_Q32·2⁸ / c₂₈; evidence τ_ev²·2^FORGET.
         let tau_ev = (i128::from(POT_COUNT_Q32) << 8) / i128::from(compliance_28);
-        let evidence = (tau_ev * tau_ev * (i128::from(BLOCK) << FORGET)).min(1 << 40) as i64;
+        let evidence = (tau_ev * tau_ev * (1 << FORGET)).min(1 << 40) as i64;
         ClutchLimits {
             compliance_28,
             mismatch_28: (compliance_28 * MISMATCH_RATIO) >> 16,
@@ -146,13 +137,8 @@ pub struct ClutchMonitor {
     s_tp: i64,
     /// Σλⁿ|τ| (N·m Q12): bounds what the pot's quantisation can add to Σλⁿτφ.
     s_ta: i64,
-    /// Consecutive blocks beyond the mismatch ratio.
+    /// Consecutive ticks beyond the mismatch ratio.
     beyond: u16,
-    /// This block's Στ², Στφ and Σ|τ| (same units as the sums) and the tick in it.
-    b_tt: i32,
-    b_tp: i32,
-    b_ta: i32,
-    phase: u8,
 }
 
 impl Default for ClutchMonitor {
@@ -174,10 +160,6 @@ impl ClutchMonitor {
             s_tp: 0,
             s_ta: 0,
             beyond: 0,
-            b_tt: 0,
-            b_tp: 0,
-            b_ta: 0,
-            phase: 0,
         }
     }
 
@@ -209,10 +191,6 @@ impl ClutchMonitor {
     /// One tick: `phi_q32` the measured deflection θ_g − θ_l (rad, I32F32), `out` the
     /// controller's output (current, gear velocity). Returns true while the mismatch
     /// holds (from the tick it is found until the monitor is reset).
-    ///
-    /// Per tick only the filters and the block's sums (i32 products); the forgetting sums
-    /// are folded once a block and the decision made once a block, half a block later, so
-    /// that the 64-bit work of the two never falls on the same tick.
     pub fn update(&mut self, phi_q32: i64, out: &Output, lim: &ClutchLimits) -> bool {
         if self.state == ClutchState::Mismatch {
             // A condition: it holds until the monitor is reset (a new configuration).
@@ -230,36 +208,20 @@ impl ClutchMonitor {
         self.phi_f = self
             .phi_f
             .saturating_add(phi.saturating_sub(self.phi_f) >> SMOOTH);
-        if self.tau_f.saturating_abs() >= lim.contact_q16 {
-            // Deflection beyond the free play on the torque's side (eq. 5's dead zone).
-            let phi_e = if self.tau_f > 0 {
-                self.phi_f.saturating_sub(lim.free_play_q16)
-            } else {
-                self.phi_f.saturating_add(lim.free_play_q16)
-            };
-            let t = (self.tau_f >> 4).clamp(-TAU_MAX_Q12, TAU_MAX_Q12);
-            let p = phi_e.clamp(-PHI_MAX_Q16, PHI_MAX_Q16);
-            // |t·t|, |t·p| < 2²⁸ and |t| ≤ 2¹⁴: BLOCK of them fit an i32.
-            self.b_tt += t * t;
-            self.b_tp += t * p;
-            self.b_ta += t.abs();
+        if self.tau_f.saturating_abs() < lim.contact_q16 {
+            return false;
         }
-        self.phase = (self.phase + 1) & (BLOCK - 1);
-        match self.phase {
-            0 => {
-                self.s_tt = self.s_tt - (self.s_tt >> FORGET) + i64::from(self.b_tt);
-                self.s_tp = self.s_tp - (self.s_tp >> FORGET) + i64::from(self.b_tp);
-                self.s_ta = self.s_ta - (self.s_ta >> FORGET) + i64::from(self.b_ta);
-                (self.b_tt, self.b_tp, self.b_ta) = (0, 0, 0);
-                false
-            }
-            DECIDE => self.decide(lim),
-            _ => false,
-        }
-    }
-
-    /// The decision on the sums, once a block.
-    fn decide(&mut self, lim: &ClutchLimits) -> bool {
+        // Deflection beyond the free play on the torque's side (eq. 5's dead zone).
+        let phi_e = if self.tau_f > 0 {
+            self.phi_f.saturating_sub(lim.free_play_q16)
+        } else {
+            self.phi_f.saturating_add(lim.free_play_q16)
+        };
+        let t = (self.tau_f >> 4).clamp(-TAU_MAX_Q12, TAU_MAX_Q12);
+        let p = phi_e.clamp(-PHI_MAX_Q16, PHI_MAX_Q16);
+        self.s_tt = self.s_tt - (self.s_tt >> FORGET) + i64::from(t * t);
+        self.s_tp = self.s_tp - (self.s_tp >> FORGET) + i64::from(t * p);
+        self.s_ta = self.s_ta - (self.s_ta >> FORGET) + i64::from(t.abs());
         if self.s_tt < lim.evidence {
             return false;
         }
@@ -272,7 +234,7 @@ impl ClutchMonitor {
         let low = self.s_tp.saturating_sub(q) << 24;
         if low > lim.mismatch_28 * self.s_tt {
             self.beyond = self.beyond.saturating_add(1);
-            if self.beyond >= MISMATCH_BLOCKS {
+            if self.beyond >= MISMATCH_TICKS {
                 self.state = ClutchState::Mismatch;
                 return true;
             }
