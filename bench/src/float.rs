@@ -898,7 +898,9 @@ impl FloatSupervisor {
             max_jump_counts: sup.max_jump_counts(),
             max_pot_jump: i32::from(cfg.max_pot_jump),
             stuck_ticks: cfg.stuck_ticks,
-            torque_cap: i32f32(sup.torque_capacity().to_bits()),
+            // The capacity the overload check uses (the clutch tolerance's weak one; the
+            // port has no clutch monitor).
+            torque_cap: i32f32(sup.checked_capacity().to_bits()),
             envelope: i32f32(sup.deflection_envelope().to_bits()),
             pot_center: i32::from(pot_center),
             position_min: i32f32(cfg.position_min.to_bits()),

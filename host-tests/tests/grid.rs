@@ -119,11 +119,14 @@ fn sweep(label: &str, off_nominal: bool, seed_offset: u64) {
 /// Writes one line per case (its figures, then the case) for tuning: `VSA_GRID_DUMP=PREFIX`
 /// writes `PREFIX.SEED.tsv`.
 fn dump(path: &str, names: &[&str], outcomes: &[Outcome]) {
-    let mut text = format!("index\tload_nm\t{}\tcase\n", names.join("\t"));
+    let mut text = format!("index\tload_nm\t{}\tfirst fault\tcase\n", names.join("\t"));
     for o in outcomes {
         let values: Vec<String> = o.figures().iter().map(|f| format!("{:.3}", f.1)).collect();
+        let first = o.metrics.first_fault.map_or("-".into(), |f| {
+            format!("{} {} at tick {}", f.code.name(), f.value, f.tick)
+        });
         text.push_str(&format!(
-            "{}\t{:.3}\t{}\t{}\n",
+            "{}\t{:.3}\t{}\t{first}\t{}\n",
             o.index,
             o.case.load_nm,
             values.join("\t"),

@@ -19,6 +19,9 @@
 //!   compliance's lower bound (the pot's half-count quantisation taken against the
 //!   estimate, a third sum Σλⁿ|τ|) stays above [`MISMATCH_RATIO`] × the configured one
 //!   (k below 80 %: the clutch about 8 % longer than configured) for 64 consecutive ticks.
+//!   A fixed ratio, not the tolerance's ((L + ΔL)/L)³ (1.40 at 5 mm with 0.6 mm): the
+//!   lower bound is conservative, and at 1.40 it let a clutch 1 mm long at 5 mm (1.73×)
+//!   through in three of four motions (docs/calibration.md).
 //!
 //! Evidence: a decision needs Σλⁿτ² ≥ (τ_ev)²·256, τ_ev the torque that deflects the
 //! configured beams by one pot count: the torque must have been large enough, for about
@@ -86,17 +89,14 @@ pub struct ClutchLimits {
 }
 
 impl ClutchLimits {
-    /// For the schedule `sched` (τ_cap and k at the configured L) and a clutch that may
-    /// be up to `tolerance_mm` (I32F32 bits, ≥ 0) longer than configured.
+    /// For the schedule `sched`: τ_cap and k at the configured L, and the clutch
+    /// tolerance (the clutch may be that much longer than configured).
     #[must_use]
-    pub fn new(sched: &Schedule, tolerance_mm: i64) -> ClutchLimits {
+    pub fn new(sched: &Schedule) -> ClutchLimits {
         let setting = sched.setting();
         let cap = setting.torque_capacity().to_bits();
-        let len = setting.length().to_bits().max(1);
-        let tol = tolerance_mm.max(0);
-        // τ_cap ∝ 1/L (σ = τ·L·r/(n·R·I), eq. 2).
-        let cap_weak =
-            ((i128::from(cap) * i128::from(len)) / (i128::from(len) + i128::from(tol))) as i64;
+        let tol = sched.clutch_tolerance().to_bits().max(0);
+        let cap_weak = sched.weak_capacity().to_bits();
         // 1.1^(−1/3) = 0.96873, Q16 63486.
         let cap_confirmed = if tol == 0 {
             cap

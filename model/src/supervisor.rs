@@ -17,8 +17,8 @@
 //! | 9 | [`FaultCode::CommandTimeout`] | heartbeats armed and none for `command_timeout_ms` | ms since the last |
 //! | 10 | [`FaultCode::ClutchMismatch`] | the clutch monitor's compliance estimate shows the beams softer than configured beyond its tolerance ([`crate::clutch_monitor`]) | estimated/configured compliance, ‰ |
 //!
-//! With a `clutch_tolerance` above 0 the torque check compares against the clutch
-//! monitor's capacity (the weakest the tolerance allows until the stiffness is confirmed)
+//! With a clutch tolerance above 0 (`control::Limits::clutch_tolerance`, the default) the
+//! torque check compares against the clutch monitor's capacity (the weakest the tolerance allows until the stiffness is confirmed)
 //! instead of τ_cap(L).
 //!
 //! Deflection envelope: φ_b + θ_cap(L) + one pot count + half an encoder count (the two
@@ -200,15 +200,16 @@ pub struct SupervisorConfig {
     /// Consecutive ticks the torque estimate must exceed τ_cap before `beam-overload`
     /// latches, 1..=10. Default 2 (a one-tick spike of the estimate is not a load).
     pub overload_ticks: u16,
-    /// How much longer than configured the clutch may actually be, mm, in [0, 5]: until
-    /// the clutch monitor confirms the stiffness the torque check uses the capacity at
-    /// that longer length. 0 turns the monitor's capacity off (τ_cap(L) as configured).
-    /// Default 0.
-    pub clutch_tolerance: crate::units::Length,
     /// The pot's error per sixteenth of its track as calibration measured it
     /// ([`PotErrorTable`]); replaces `pot_tolerance_counts` in the deflection envelope,
     /// bin by bin (module docs). `None` (default): the fixed tolerance.
     pub pot_error: Option<PotErrorTable>,
+    /// Runs the clutch monitor's stiffness estimate ([`crate::clutch_monitor`]): the
+    /// `clutch-mismatch` fault and, once the stiffness is confirmed, the capacity at the
+    /// configured length. Needs a clutch tolerance above 0. Default off (the estimate
+    /// trips on off-nominal actuators with the right clutch, docs/calibration.md); the
+    /// overload check then keeps the tolerance's weak capacity.
+    pub clutch_monitor: bool,
 }
 
 impl SupervisorConfig {
@@ -225,8 +226,8 @@ impl SupervisorConfig {
         command_timeout_ms: 100,
         pot_tolerance_counts: 3,
         overload_ticks: 2,
-        clutch_tolerance: crate::units::Length::from_int(0),
         pot_error: None,
+        clutch_monitor: false,
     };
 }
 
@@ -256,8 +257,6 @@ pub enum SupervisorError {
     PotTolerance,
     /// `overload_ticks` not in 1..=10.
     OverloadTicks,
-    /// `clutch_tolerance` not in [0, 5] mm.
-    ClutchTolerance,
     /// A `pot_error` entry above
     /// [`MAX_ERROR_CENTI`](crate::calibration::pot_error::MAX_ERROR_CENTI) (50 pot counts).
     PotErrorTable,
@@ -274,7 +273,6 @@ impl core::fmt::Display for SupervisorError {
             SupervisorError::Timeout => "command timeout must be at least 1 ms",
             SupervisorError::PotTolerance => "pot tolerance above 100 counts",
             SupervisorError::OverloadTicks => "overload ticks outside 1..=10",
-            SupervisorError::ClutchTolerance => "clutch tolerance outside [0, 5] mm",
             SupervisorError::PotErrorTable => "pot error table entry above 50 counts",
         })
     }
@@ -334,7 +332,7 @@ pub struct Supervisor {
     /// value then: what a clear would latch again at the next tick. Events (a sensor jump,
     /// the command timeout) are not conditions.
     condition: Option<Fault>,
-    /// The clutch monitor and its constants (when `clutch_tolerance` > 0; kept out of
+    /// The clutch monitor and its constants (when the clutch tolerance is > 0; kept out of
     /// the thresholds, which the check copies each tick).
     clutch: ClutchMonitor,
     clutch_lim: Option<ClutchLimits>,
@@ -353,7 +351,7 @@ impl Supervisor {
     pub fn new(cfg: &SupervisorConfig, sched: &Schedule) -> Result<Supervisor, SupervisorError> {
         let th = Self::thresholds(cfg, sched)?;
         Ok(Supervisor {
-            clutch_lim: Self::clutch_limits(cfg, sched),
+            clutch_lim: Self::clutch_limits(sched),
             envelopes: Self::envelopes(cfg, sched),
             cfg: *cfg,
             th,
@@ -383,15 +381,14 @@ impl Supervisor {
         self.th = Self::thresholds(cfg, sched)?;
         self.cfg = *cfg;
         self.clutch = ClutchMonitor::new();
-        self.clutch_lim = Self::clutch_limits(cfg, sched);
+        self.clutch_lim = Self::clutch_limits(sched);
         self.envelopes = Self::envelopes(cfg, sched);
         Ok(())
     }
 
-    /// The clutch monitor's constants (`None` with a zero tolerance). `cfg` is valid.
-    fn clutch_limits(cfg: &SupervisorConfig, sched: &Schedule) -> Option<ClutchLimits> {
-        let tol = cfg.clutch_tolerance.to_bits();
-        (tol > 0).then(|| ClutchLimits::new(sched, tol))
+    /// The clutch monitor's constants (`None` with a zero clutch tolerance).
+    fn clutch_limits(sched: &Schedule) -> Option<ClutchLimits> {
+        (sched.clutch_tolerance().to_bits() > 0).then(|| ClutchLimits::new(sched))
     }
 
     fn thresholds(cfg: &SupervisorConfig, sched: &Schedule) -> Result<Thresholds, SupervisorError> {
@@ -423,10 +420,6 @@ impl Supervisor {
         }
         if !(1..=10).contains(&cfg.overload_ticks) {
             return Err(SupervisorError::OverloadTicks);
-        }
-        let tol = cfg.clutch_tolerance.to_bits();
-        if !(0..=5 * Q32_ONE).contains(&tol) {
-            return Err(SupervisorError::ClutchTolerance);
         }
         if cfg.pot_error.is_some_and(|t| !t.is_valid()) {
             return Err(SupervisorError::PotErrorTable);
@@ -501,19 +494,40 @@ impl Supervisor {
         Torque::from_bits(self.th.torque_cap)
     }
 
-    /// The capacity the overload check uses now: τ_cap(L), or the clutch monitor's.
+    /// The capacity the overload and stuck-sensor checks use now: τ_cap(L), or with a
+    /// clutch tolerance the clutch monitor's (the weak one until it confirms).
     #[must_use]
     pub fn checked_capacity(&self) -> Torque {
-        Torque::from_bits(match &self.clutch_lim {
-            Some(lim) => self.clutch.capacity(lim),
-            None => self.th.torque_cap,
-        })
+        Torque::from_bits(self.capacity())
     }
 
-    /// The clutch monitor's conclusion (`None` while `clutch_tolerance` is 0).
+    /// [`Supervisor::checked_capacity`], I32F32 bits.
+    fn capacity(&self) -> i64 {
+        match &self.clutch_lim {
+            Some(lim) => self.clutch.capacity(lim),
+            None => self.th.torque_cap,
+        }
+    }
+
+    /// The clutch monitor's compliance estimate relative to the configured one, Q16
+    /// (`None` without enough evidence, with the monitor off or the clutch tolerance 0).
+    /// Divides: for reports.
+    #[must_use]
+    pub fn clutch_ratio_q16(&self) -> Option<i64> {
+        self.monitor_limits()
+            .and_then(|lim| self.clutch.ratio_q16(lim))
+    }
+
+    /// The clutch monitor's conclusion (`None` with the monitor off or the clutch
+    /// tolerance 0).
     #[must_use]
     pub fn clutch_state(&self) -> Option<crate::clutch_monitor::ClutchState> {
-        self.clutch_lim.map(|_| self.clutch.state())
+        self.monitor_limits().map(|_| self.clutch.state())
+    }
+
+    /// The clutch monitor's constants when it runs.
+    fn monitor_limits(&self) -> Option<&ClutchLimits> {
+        self.clutch_lim.as_ref().filter(|_| self.cfg.clutch_monitor)
     }
 
     /// Deflection envelope (φ_b + θ_cap + the pot's error + quantisation) the overload and
@@ -684,7 +698,7 @@ impl Supervisor {
             self.prev_pot = Some(pot);
             let theta_g = i64::from(i32::from(pot) - th.pot_center).saturating_mul(POT_COUNT_Q32);
             let phi = theta_g.saturating_sub(out.link_angle.to_bits());
-            let mismatch = match &self.clutch_lim {
+            let mismatch = match self.clutch_lim.as_ref().filter(|_| self.cfg.clutch_monitor) {
                 Some(lim) if self.clutch.update(phi, out, lim) => {
                     let r = self.clutch.ratio_q16(lim).unwrap_or(0);
                     Some(((r * 1000) >> 16).clamp(0, i64::from(i32::MAX)) as i32)
@@ -697,7 +711,7 @@ impl Supervisor {
             if phi.saturating_abs() > self.envelopes[PotErrorTable::bin(pot)] {
                 let tau = out.torque_estimate.to_bits().saturating_abs();
                 let micro = to_micro(phi);
-                if self.unchanged_ticks >= th.stuck_ticks && tau < th.torque_cap / 2 {
+                if self.unchanged_ticks >= th.stuck_ticks && tau < self.capacity() / 2 {
                     note(self, FaultCode::SensorStuck, micro);
                 } else {
                     note(self, FaultCode::BeamOverload, micro);
@@ -708,10 +722,7 @@ impl Supervisor {
         }
 
         let tau = out.torque_estimate.to_bits();
-        let cap = match &self.clutch_lim {
-            Some(lim) => self.clutch.capacity(lim),
-            None => th.torque_cap,
-        };
+        let cap = self.capacity();
         if self.grace_ticks > 0 {
             self.grace_ticks -= 1;
         } else if tau.saturating_abs() > cap {
@@ -839,22 +850,38 @@ mod tests {
 
     #[test]
     fn torque_beyond_capacity_is_an_overload_and_the_window_a_position_limit() {
-        let (mut s, sched) = sup(5);
-        let cap = sched.setting().torque_capacity().to_bits();
-        let mut out = at_rest();
-        out.torque_estimate = Torque::from_bits(cap);
-        assert_eq!(s.check(1, &quiet(0), &out), None);
-        out.torque_estimate = Torque::from_bits(-cap - 1);
-        // One tick beyond is a spike of the estimate, two are a load.
-        assert_eq!(s.check(2, &quiet(0), &out), None);
-        out.torque_estimate = Torque::from_bits(cap);
-        assert_eq!(s.check(3, &quiet(0), &out), None);
-        out.torque_estimate = Torque::from_bits(-cap - 1);
-        assert_eq!(s.check(4, &quiet(0), &out), None);
-        assert_eq!(
-            s.check(5, &quiet(0), &out).unwrap().code,
-            FaultCode::BeamOverload
-        );
+        let d = Design::paper();
+        let full = Schedule::new(&d, &Config::paper(Length::from_int(5)))
+            .unwrap()
+            .setting()
+            .torque_capacity()
+            .to_bits();
+        // Without a clutch tolerance τ_cap(L); with 0.6 mm, while the clutch monitor is
+        // undecided, the capacity of a clutch 0.6 mm long, τ_cap·5/5.6 (τ_cap ∝ 1/L), to
+        // within a few bits of rounding.
+        for (tol_um, cap) in [(0, full), (600, full * 50 / 56 - (1 << 8))] {
+            let mut cfg = Config::paper(Length::from_int(5));
+            cfg.limits.clutch_tolerance = Length::from_micro(tol_um * 1000).unwrap();
+            let sched = Schedule::new(&d, &cfg).unwrap();
+            let mut s = Supervisor::new(&SupervisorConfig::DEFAULT, &sched).unwrap();
+            let mut out = at_rest();
+            out.torque_estimate = Torque::from_bits(cap);
+            assert_eq!(s.check(1, &quiet(0), &out), None);
+            let beyond = cap + (1 << 9);
+            out.torque_estimate = Torque::from_bits(-beyond);
+            // One tick beyond is a spike of the estimate, two are a load.
+            assert_eq!(s.check(2, &quiet(0), &out), None);
+            out.torque_estimate = Torque::from_bits(cap);
+            assert_eq!(s.check(3, &quiet(0), &out), None);
+            out.torque_estimate = Torque::from_bits(-beyond);
+            assert_eq!(s.check(4, &quiet(0), &out), None);
+            assert_eq!(
+                s.check(5, &quiet(0), &out).unwrap().code,
+                FaultCode::BeamOverload,
+                "tolerance {tol_um} µm"
+            );
+        }
+        let (mut s, _) = sup(5);
         let mut out = at_rest();
         out.link_angle = Angle::from_bits(-(5 * Q32_ONE) / 2 - 1);
         let mut no_pot = quiet(0);

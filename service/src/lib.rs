@@ -425,6 +425,8 @@ fn with_limits(
         max_current_a: current,
         max_motor_torque: Torque::from_bits(micro_to_q32(limits.motor_torque_unm.into())),
         max_duty: i16::try_from(limits.duty_permille).map_err(|_| ErrorCode::OutOfRange)?,
+        // Not on the wire: the clutch tolerance stays what the configuration says.
+        clutch_tolerance: config.limits.clutch_tolerance,
     };
     supervision.trip_current_a = current.saturating_add(TRIP_ABOVE_LIMIT_A);
     supervision.position_min = Angle::from_bits(micro_to_q32(limits.position_min_urad.into()));

@@ -60,6 +60,13 @@ pub struct Limits {
     pub max_motor_torque: Torque,
     /// Largest |duty|, ‰, in 1..=1000. Default 1000.
     pub max_duty: i16,
+    /// How much longer than configured the hand-set clutch may actually be, mm, in
+    /// [0, 5]. The beams' capacity at L + this (τ_cap ∝ 1/L, eq. 2) is the one the torque
+    /// limit above and the supervisor's overload check use (the latter until the clutch
+    /// monitor, if on, confirms the stiffness; docs/calibration.md, "The clutch
+    /// monitor"). 0.6 mm covers ±0.5 mm of sliding by hand plus 0.1 mm of reading the
+    /// scale. Default 0 (τ_cap(L) as configured), for the reasons measured there.
+    pub clutch_tolerance: Length,
 }
 
 impl Limits {
@@ -69,6 +76,7 @@ impl Limits {
         max_current_a: I32F32::lit("1.5"),
         max_motor_torque: Torque::from_fixed(I32F32::lit("1.5")),
         max_duty: 1000,
+        clutch_tolerance: Length::from_int(0),
     };
 }
 

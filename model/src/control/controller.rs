@@ -580,10 +580,23 @@ mod tests {
             assert!((g.ki.to_num::<f64>() - ki).abs() < 1e-3 * ki);
             assert!((g.kd.to_num::<f64>() - kd).abs() < 1e-3 * kd.max(1.0));
             let cap = s.setting().torque_capacity().get().to_num::<f64>();
+            // Without a clutch tolerance (the default), τ_cap(L) itself.
+            assert_eq!(s.weak_capacity(), s.setting().torque_capacity());
             let (i_lim, beams) = s.current_limit();
             let want = (0.85 * cap).min(1.5);
             assert!((i_lim.to_num::<f64>() - want).abs() < 1e-4, "L = {l}");
             assert_eq!(beams, 0.85 * cap < 1.5);
+            // A clutch up to 0.6 mm long: the weak capacity of a clutch that long
+            // (τ_cap ∝ 1/L) sets the limit.
+            let mut cfg = Config::paper(Length::from_int(l));
+            cfg.limits.clutch_tolerance = Length::from_micro(600_000).unwrap();
+            let t = Schedule::new(&d, &cfg).unwrap();
+            let weak = cap * f64::from(l) / (f64::from(l) + 0.6);
+            assert!((t.weak_capacity().get().to_num::<f64>() - weak).abs() < 1e-6);
+            let (i_lim, beams) = t.current_limit();
+            let want = (0.85 * weak).min(1.5);
+            assert!((i_lim.to_num::<f64>() - want).abs() < 1e-4, "L = {l}");
+            assert_eq!(beams, 0.85 * weak < 1.5);
             // Blend weight: σ_i² / (σ_i² + (k·q_pot)²/12).
             let sd = k * (300f64.to_radians() / 1024.0);
             let w = 4e-4 / (4e-4 + sd * sd / 12.0);
@@ -730,9 +743,21 @@ mod tests {
         })
         .unwrap();
         let o = c.step(&meas(0, 2048));
-        // At rest the window is ±R·i_lim = ±(8 V·0.78 A)·1000/12 = ±521 ‰ (beam-limited).
+        // At rest the window is ±R·i_lim·1000/V, i_lim = 0.85·τ_cap(L)/k_t (beam-limited):
+        // 0.78 A, 521 ‰.
+        let cap = c
+            .schedule()
+            .setting()
+            .torque_capacity()
+            .get()
+            .to_num::<f64>();
+        let window = 8.0 * 0.85 * cap * 1000.0 / 12.0;
         assert!(o.flags.torque_limited && !o.flags.current_limited, "{o:?}");
-        assert!((500..540).contains(&o.duty), "{}", o.duty);
+        assert!(
+            (f64::from(o.duty) - window).abs() < 10.0,
+            "{} vs {window}",
+            o.duty
+        );
         let mut c = ctl(1);
         c.step(&meas(0, 2048));
         c.command(Command::Step {

@@ -16,7 +16,7 @@ use crate::beam::Setting;
 use crate::design::Design;
 use crate::dynamics::natural_frequency;
 use crate::sensors::{ADC_COUNTS_PER_A, POT_COUNTS, POT_SPAN_DEG};
-use crate::units::{Angle, Frequency, Inertia, Stiffness, Torque};
+use crate::units::{Angle, Frequency, Inertia, Length, Stiffness, Torque};
 
 /// Bandwidth schedule: ω_c = min(`BW_MAX`, ω_a / `BW_RATIO`), ω_a = √(k/J_link).
 pub const BW_RATIO: i32 = 5;
@@ -163,8 +163,11 @@ pub struct Schedule {
     /// once here, not per tick).
     pub(crate) i_lim_duty_q16: i32,
     pub(crate) i_lim_from_beams: bool,
-    /// Coupling torque limit τ_lim = margin·τ_cap (N·m, Q16).
+    /// Coupling torque limit τ_lim = margin·τ_cap(L + ΔL) (N·m, Q16).
     pub(crate) tau_lim_q16: i32,
+    /// The clutch tolerance ΔL and the weakest capacity it allows, τ_cap(L)·L/(L + ΔL).
+    clutch_tolerance: Length,
+    weak_capacity: Torque,
     /// Duty limit, ‰ Q16.
     pub(crate) duty_lim_q16: i32,
     /// Pot reading at gear angle 0 and encoder reading at link angle 0, counts.
@@ -262,18 +265,25 @@ fn pole_placement(p: &Drive, w: I64F64) -> Result<PidGains, ControlError> {
     })
 }
 
-/// The coupling torque limit τ_lim = margin·τ_cap(L), N·m, the current limit, A, and
-/// whether the beams (not the motor) set it: the motor torque that keeps the beams below
-/// τ_lim even with the two-mass overshoot, |τ_s,peak| ≤ max(1, (3J_l − J_g)/(J_g + J_l))·τ_m.
+/// The weakest capacity the clutch tolerance allows, τ_cap(L)·L/(L + ΔL), N·m: the beams
+/// of a clutch up to ΔL longer than configured (τ_cap ∝ 1/L, eq. 2; docs/calibration.md,
+/// "The clutch monitor").
+fn weak_capacity(setting: &Setting, lim: &Limits) -> Result<I64F64, ControlError> {
+    let len = wide(setting.length().get());
+    let longer = add(len, wide(lim.clutch_tolerance.get()))?;
+    mul(wide(setting.torque_capacity().get()), div(len, longer)?)
+}
+
+/// The coupling torque limit τ_lim = margin·τ_cap(L + ΔL), N·m (the weak capacity), the
+/// current limit, A, and whether the beams (not the motor) set it: the motor torque that
+/// keeps the beams below τ_lim even with the two-mass overshoot,
+/// |τ_s,peak| ≤ max(1, (3J_l − J_g)/(J_g + J_l))·τ_m.
 fn current_limit(
     p: &Drive,
-    setting: &Setting,
+    cap_weak: I64F64,
     lim: &Limits,
 ) -> Result<(I64F64, I64F64, bool), ControlError> {
-    let tau_lim = mul(
-        wide(setting.torque_capacity().get()),
-        wide(lim.torque_margin.get()),
-    )?;
+    let tau_lim = mul(cap_weak, wide(lim.torque_margin.get()))?;
     let overshoot = div(sub(mul(I64F64::from_num(3), p.j_link)?, p.j_gear)?, p.j)?.max(I64F64::ONE);
     let i_beams = div(div(tau_lim, overshoot)?, p.kt)?;
     let i_motor = wide(lim.max_current_a).min(div(wide(lim.max_motor_torque.get()), p.kt)?);
@@ -334,7 +344,8 @@ impl Schedule {
         let alpha = div(dt, add(tau_f, dt)?)?;
 
         let lim = &cfg.limits;
-        let (tau_lim, i_lim, i_lim_from_beams) = current_limit(&p, &setting, lim)?;
+        let cap_weak = weak_capacity(&setting, lim)?;
+        let (tau_lim, i_lim, i_lim_from_beams) = current_limit(&p, cap_weak, lim)?;
         let w_defl = deflection_weight(k, cfg.sensors.current_torque_sigma)?;
         let free_play = wide(setting.free_play().get());
         let w_defl = to_gain(w_defl)?;
@@ -424,6 +435,10 @@ impl Schedule {
             i_lim_duty_q16: duty_per_amp.apply(i_lim_q16),
             i_lim_from_beams,
             tau_lim_q16: to_q16(tau_lim)?,
+            clutch_tolerance: lim.clutch_tolerance,
+            weak_capacity: Torque::from_bits(
+                i64::try_from(cap_weak.to_bits() >> 32).map_err(|_| ControlError::Overflow)?,
+            ),
             duty_lim_q16: i32::from(lim.max_duty) * Q16_ONE,
             pot_center: i32::from(cfg.sensors.pot_center),
             encoder_zero: cfg.sensors.encoder_zero,
@@ -455,7 +470,19 @@ impl Schedule {
         self.gains
     }
 
-    /// The coupling torque limit τ_lim = margin·τ_cap(L).
+    /// How much longer than configured the clutch may be.
+    #[must_use]
+    pub const fn clutch_tolerance(&self) -> Length {
+        self.clutch_tolerance
+    }
+
+    /// The weakest capacity the clutch tolerance allows, τ_cap(L)·L/(L + ΔL).
+    #[must_use]
+    pub const fn weak_capacity(&self) -> Torque {
+        self.weak_capacity
+    }
+
+    /// The coupling torque limit τ_lim = margin·τ_cap(L + ΔL).
     #[must_use]
     pub fn torque_limit(&self) -> Torque {
         Torque::from_bits(i64::from(self.tau_lim_q16) << 16)

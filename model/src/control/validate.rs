@@ -55,7 +55,12 @@ pub(crate) fn validate(design: &Design, cfg: &Config) -> Result<Setting, Control
     if !(in_range(lim.torque_margin.get(), I32F32::DELTA, one)
         && in_range(lim.max_current_a, I32F32::DELTA, I32F32::from_num(10))
         && lim.max_motor_torque.to_bits() > 0
-        && (1..=1000).contains(&lim.max_duty))
+        && (1..=1000).contains(&lim.max_duty)
+        && in_range(
+            lim.clutch_tolerance.get(),
+            I32F32::ZERO,
+            I32F32::from_num(5),
+        ))
     {
         return Err(E::LimitOutOfRange);
     }
