@@ -45,6 +45,15 @@ pub struct SimulateArgs {
     /// Wanted joint stiffness instead of a length, e.g. `250Nm/rad`.
     #[arg(long, value_name = "STIFFNESS")]
     pub stiffness: Option<String>,
+    /// How much longer than configured the hand-set clutch may be, e.g. `0.6mm` (0 to
+    /// 5 mm, default 0): the controller's torque limit and the overload check use the
+    /// beams' capacity at that longer length.
+    #[arg(long, value_name = "LENGTH", default_value = "0mm")]
+    pub clutch_tolerance: String,
+    /// Run the clutch monitor (stiffness estimate, `clutch-mismatch`); needs a clutch
+    /// tolerance above 0.
+    #[arg(long)]
+    pub clutch_monitor: bool,
     /// Link inertia, kg·m² (e.g. `1e-3`; a `kgm2` / `kg·m²` suffix is accepted).
     #[arg(long, value_name = "KG_M2", default_value = "1e-3")]
     pub inertia: String,
@@ -93,7 +102,8 @@ pub struct SimulateArgs {
     /// absolute with its unit or a factor `xF` of the nominal value; repeatable. Names:
     /// resistance (ohm), torque-constant (Nm/A), back-emf (Vs/rad), gear-inertia (kgm2),
     /// gear-friction (Nm), supply (V), current-offset (counts), current-gain (factor),
-    /// pot-offset (counts), link-inertia (kgm2), link-friction (Nm).
+    /// pot-offset (counts), link-inertia (kgm2), link-friction (Nm), clutch (mm: the
+    /// actual clutch length, whatever the controller was told).
     #[arg(long = "plant", value_name = "NAME=VALUE", allow_hyphen_values = true)]
     pub plant: Vec<String>,
 }
@@ -210,6 +220,15 @@ fn config(args: &SimulateArgs) -> Result<Config, String> {
     let j = parse(&args.inertia, "--inertia", INERTIA)? * 1e6; // kg·mm²
     cfg.link_inertia =
         Inertia::from_micro(micro(j, "--inertia")?).map_err(|e| format!("--inertia: {e}"))?;
+    let tol = parse(&args.clutch_tolerance, "--clutch-tolerance", LENGTH_MM)?;
+    if !(0.0..=5.0).contains(&tol) {
+        return Err(format!("--clutch-tolerance: {tol} mm is outside 0 to 5 mm"));
+    }
+    cfg.limits.clutch_tolerance = Length::from_micro(micro(tol, "--clutch-tolerance")?)
+        .map_err(|e| format!("--clutch-tolerance: {e}"))?;
+    if args.clutch_monitor && tol == 0.0 {
+        return Err("--clutch-monitor needs a --clutch-tolerance above 0".into());
+    }
     Ok(cfg)
 }
 
@@ -444,6 +463,7 @@ pub fn run(args: &SimulateArgs) -> Result<(), String> {
     // At least one tick after the command: a run without one has no response to report.
     sc.run_ticks = ticks(&args.seconds, "--seconds", 1)?;
     sc.use_pot = !args.no_pot;
+    sc.supervision.clutch_monitor = args.clutch_monitor;
     sc.steady_window_ticks = 500.min(sc.run_ticks);
     // For a sine, the RMS error skips the first period (start transient).
     sc.rms_from_ticks = period_s.map_or(0, |p| ((p * 1e3).round() as u32).min(sc.run_ticks));

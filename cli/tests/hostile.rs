@@ -106,6 +106,18 @@ fn argument_attacks_exit_2_naming_the_argument() {
             &["simulate", "--step", "0.5rad", "--inertia=-1"],
             "--inertia",
         ),
+        (
+            &["simulate", "--step", "0.5rad", "--clutch-tolerance", "6mm"],
+            "--clutch-tolerance",
+        ),
+        (
+            &["simulate", "--step", "0.5rad", "--clutch-tolerance=-1mm"],
+            "--clutch-tolerance",
+        ),
+        (
+            &["simulate", "--step", "0.5rad", "--clutch-monitor"],
+            "--clutch-monitor",
+        ),
     ] {
         usage_error(&vsa(args), want);
     }
