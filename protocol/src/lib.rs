@@ -207,6 +207,8 @@ pub const KD_MAX: u64 = 10_000_000;
 pub const CURRENT_LIMIT_MAX_MA: u16 = 10_000;
 /// Largest motor torque limit at the output, µN·m (100 N·m).
 pub const MOTOR_TORQUE_LIMIT_MAX_UNM: u32 = 100_000_000;
+/// Largest clutch tolerance, µm (5 mm, `model::control::Limits::clutch_tolerance`).
+pub const CLUTCH_TOLERANCE_MAX_UM: u16 = 5_000;
 
 /// Telemetry rate range when streaming, Hz (0 turns the stream off).
 pub const TELEMETRY_RATE_MIN_HZ: u16 = 10;

@@ -6,11 +6,12 @@
 use serde::{Deserialize, Serialize};
 
 use crate::{
-    CLUTCH_MAX_UM, CLUTCH_MIN_UM, CURRENT_LIMIT_MAX_MA, IMPEDANCE_DAMPING_MAX_UNMS_PER_RAD,
-    IMPEDANCE_STIFFNESS_MIN_MNM_PER_RAD, IMPEDANCE_TORQUE_MAX_UNM, KD_MAX, KI_MAX, KP_MAX,
-    MOTOR_TORQUE_LIMIT_MAX_UNM, MOVE_DURATION_MAX_MS, MOVE_DURATION_MIN_MS,
-    SINE_AMPLITUDE_MAX_URAD, SINE_FREQUENCY_MAX_MHZ, SINE_FREQUENCY_MIN_MHZ,
-    STIFFNESS_MIN_MNM_PER_RAD, TARGET_MAX_URAD, TELEMETRY_RATE_MAX_HZ, TELEMETRY_RATE_MIN_HZ,
+    CLUTCH_MAX_UM, CLUTCH_MIN_UM, CLUTCH_TOLERANCE_MAX_UM, CURRENT_LIMIT_MAX_MA,
+    IMPEDANCE_DAMPING_MAX_UNMS_PER_RAD, IMPEDANCE_STIFFNESS_MIN_MNM_PER_RAD,
+    IMPEDANCE_TORQUE_MAX_UNM, KD_MAX, KI_MAX, KP_MAX, MOTOR_TORQUE_LIMIT_MAX_UNM,
+    MOVE_DURATION_MAX_MS, MOVE_DURATION_MIN_MS, SINE_AMPLITUDE_MAX_URAD, SINE_FREQUENCY_MAX_MHZ,
+    SINE_FREQUENCY_MIN_MHZ, STIFFNESS_MIN_MNM_PER_RAD, TARGET_MAX_URAD, TELEMETRY_RATE_MAX_HZ,
+    TELEMETRY_RATE_MIN_HZ,
 };
 
 /// A request from the host. Each one is answered by exactly one [`Reply`] with the same
@@ -185,11 +186,15 @@ pub struct Limits {
     pub position_min_urad: i32,
     /// Upper position limit of the link, µrad, |·| ≤ [`TARGET_MAX_URAD`].
     pub position_max_urad: i32,
+    /// How much longer than configured the hand-set clutch may be, µm,
+    /// 0..=[`CLUTCH_TOLERANCE_MAX_UM`]: the torque limit and the overload check use the
+    /// beams' capacity at that length (`model::control::Limits::clutch_tolerance`).
+    pub clutch_tolerance_um: u16,
 }
 
 impl Limits {
     /// Defaults of the controller and the supervisor: margin 850 ‰, 1.5 A, 1.5 N·m (AX-12A
-    /// stall), full duty, position window ±2.5 rad.
+    /// stall), full duty, position window ±2.5 rad, no clutch tolerance.
     pub const DEFAULT: Limits = Limits {
         torque_margin_permille: 850,
         current_ma: 1_500,
@@ -197,6 +202,7 @@ impl Limits {
         duty_permille: 1_000,
         position_min_urad: -2_500_000,
         position_max_urad: 2_500_000,
+        clutch_tolerance_um: 0,
     };
 }
 
@@ -229,6 +235,7 @@ impl Limits {
             && target_ok(self.position_min_urad)
             && target_ok(self.position_max_urad)
             && self.position_min_urad < self.position_max_urad
+            && self.clutch_tolerance_um <= CLUTCH_TOLERANCE_MAX_UM
     }
 }
 

@@ -50,6 +50,7 @@ fn in_range(r: &Request) -> bool {
                 && angle(l.position_min_urad)
                 && angle(l.position_max_urad)
                 && l.position_min_urad < l.position_max_urad
+                && l.clutch_tolerance_um <= 5_000
         }
         Request::StreamTelemetry { rate_hz } => rate_hz == 0 || (10..=500).contains(&rate_hz),
         // 0.1 N·m/rad up; 100 N·m·s/rad; ±100 N·m.

@@ -342,6 +342,14 @@ fn range_boundaries() {
         duty_permille: 1_001,
         ..l
     }));
+    ok(R::SetLimits(Limits {
+        clutch_tolerance_um: 5_000,
+        ..l
+    }));
+    bad(R::SetLimits(Limits {
+        clutch_tolerance_um: 5_001,
+        ..l
+    }));
     bad(R::SetLimits(Limits {
         position_min_urad: 1,
         position_max_urad: 1,

@@ -156,6 +156,7 @@ fn largest_requests() -> Vec<Request> {
             duty_permille: u16::MAX,
             position_min_urad: i32::MIN,
             position_max_urad: i32::MIN,
+            clutch_tolerance_um: u16::MAX,
         }),
         Request::StreamTelemetry { rate_hz: u16::MAX },
         Request::Heartbeat,
@@ -237,6 +238,7 @@ fn largest_replies() -> Vec<Reply> {
             duty_permille: u16::MAX,
             position_min_urad: i32::MIN,
             position_max_urad: i32::MIN,
+            clutch_tolerance_um: u16::MAX,
         }),
         Reply::FaultPersists(FaultRecord {
             code: FaultCode::CommandTimeout,

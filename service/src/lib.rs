@@ -425,8 +425,7 @@ fn with_limits(
         max_current_a: current,
         max_motor_torque: Torque::from_bits(micro_to_q32(limits.motor_torque_unm.into())),
         max_duty: i16::try_from(limits.duty_permille).map_err(|_| ErrorCode::OutOfRange)?,
-        // Not on the wire: the clutch tolerance stays what the configuration says.
-        clutch_tolerance: config.limits.clutch_tolerance,
+        clutch_tolerance: Length::from_bits(milli_to_q32(limits.clutch_tolerance_um.into())),
     };
     supervision.trip_current_a = current.saturating_add(TRIP_ABOVE_LIMIT_A);
     supervision.position_min = Angle::from_bits(micro_to_q32(limits.position_min_urad.into()));
@@ -447,6 +446,7 @@ fn limits_of(config: &Config, supervision: &SupervisorConfig) -> Limits {
         duty_permille: l.max_duty.unsigned_abs(),
         position_min_urad: q32_to_micro(s.position_min.to_bits()),
         position_max_urad: q32_to_micro(s.position_max.to_bits()),
+        clutch_tolerance_um: milli(l.clutch_tolerance.to_bits()),
     }
 }
 

@@ -341,6 +341,45 @@ fn the_largest_target_stays_inside_what_the_gear_pot_measures() {
 }
 
 #[test]
+fn a_clutch_tolerance_over_the_wire_derates_the_torque_limit_and_the_check() {
+    let mut b = Board::new();
+    let cap = b
+        .actuator
+        .0
+        .servo
+        .controller()
+        .schedule()
+        .setting()
+        .torque_capacity();
+    let full = b.actuator.0.servo.controller().schedule().torque_limit();
+    let limits = Limits {
+        clutch_tolerance_um: 600,
+        ..Limits::DEFAULT
+    };
+    assert_eq!(b.ask(Request::SetLimits(limits)), Reply::Ok);
+    assert_eq!(b.ask(Request::GetLimits), Reply::Limits(limits));
+    // At 3 mm a clutch up to 0.6 mm long: τ_cap·3/3.6 for the check, 0.85 of it for the
+    // controller (τ_cap ∝ 1/L).
+    let servo = &b.actuator.0.servo;
+    let nm = |t: model::Torque| t.get().to_num::<f64>();
+    let weak = nm(cap) * 3.0 / 3.6;
+    assert!((nm(servo.supervisor().checked_capacity()) - weak).abs() < 1e-6);
+    let derated = nm(servo.controller().schedule().torque_limit());
+    assert!((derated - 0.85 * weak).abs() < 1e-4, "{derated}");
+    assert!((nm(full) - 0.85 * nm(cap)).abs() < 1e-4);
+    // Beyond 5 mm: refused, nothing changes.
+    let too_long = Limits {
+        clutch_tolerance_um: 5_001,
+        ..Limits::DEFAULT
+    };
+    assert_eq!(
+        b.ask(Request::SetLimits(too_long)),
+        Reply::Error(ErrorCode::OutOfRange)
+    );
+    assert_eq!(b.ask(Request::GetLimits), Reply::Limits(limits));
+}
+
+#[test]
 fn limits_and_gains_are_prepared_and_installed() {
     let mut b = Board::new();
     let mut limits = Limits::DEFAULT;

@@ -14,8 +14,9 @@ use service::{Actuator, Service};
 mod common;
 use common::Cell;
 
-/// Limits from (margin ‰, current mA, motor torque µN·m, duty ‰, position min, max µrad).
-fn limits_from((m, c, t, d, lo, hi): (u16, u16, u32, u16, i32, i32)) -> Limits {
+/// Limits from (margin ‰, current mA, motor torque µN·m, duty ‰, position min, max µrad,
+/// clutch tolerance µm).
+fn limits_from((m, c, t, d, lo, hi, tol): (u16, u16, u32, u16, i32, i32, u16)) -> Limits {
     Limits {
         torque_margin_permille: m,
         current_ma: c,
@@ -23,6 +24,7 @@ fn limits_from((m, c, t, d, lo, hi): (u16, u16, u32, u16, i32, i32)) -> Limits {
         duty_permille: d,
         position_min_urad: lo,
         position_max_urad: hi,
+        clutch_tolerance_um: tol,
     }
 }
 
@@ -35,6 +37,7 @@ fn request() -> impl Strategy<Value = Request> {
         any::<u16>(),
         any::<i32>(),
         any::<i32>(),
+        any::<u16>(),
     )
         .prop_map(limits_from);
     let near_limits = (
@@ -44,6 +47,7 @@ fn request() -> impl Strategy<Value = Request> {
         1u16..=1000,
         -3_000_000i32..0,
         0i32..3_000_000,
+        0u16..=6_000,
     )
         .prop_map(limits_from);
     prop_oneof![

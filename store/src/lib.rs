@@ -57,14 +57,15 @@
 //!
 //! | record | version | fields (unit) | largest |
 //! |---|---|---|---|
-//! | [`Config`] | 1 | clutch: length µm or stiffness mN·m/rad; link inertia kg·mm²; gains (10⁻³ of the controller's units) or automatic; [`protocol::Limits`] (torque margin ‰, current mA, motor torque µN·m, duty ‰, position window µrad); command timeout ms | [`CONFIG_MAX`] = 72 B |
-//! | [`Calibration`] | 1 | motor polarity, encoder and pot directions ±1; current offset ADC counts; pot offset counts; resistance mΩ; back-EMF µV·s/rad; gear friction µN·m; link inertia kg·mm²; stiffness mN·m/rad or unresolved; clutch length µm or unresolved; stiffness uncertainty ‰ | [`CALIBRATION_MAX`] = 45 B |
+//! | [`Config`] | 2 | clutch: length µm or stiffness mN·m/rad; link inertia kg·mm²; gains (10⁻³ of the controller's units) or automatic; [`protocol::Limits`] (torque margin ‰, current mA, motor torque µN·m, duty ‰, position window µrad, clutch tolerance µm); command timeout ms | [`CONFIG_MAX`] = 75 B |
+//! | [`Calibration`] | 2 | motor polarity, encoder and pot directions ±1; current offset ADC counts; pot offset counts; resistance mΩ; back-EMF µV·s/rad; gear friction µN·m; link inertia kg·mm²; stiffness mN·m/rad or unresolved; clutch length µm or unresolved; stiffness uncertainty ‰; encoder counts per turn; pot and current-sense gains ppm; the pot's error table or none | [`CALIBRATION_MAX`] = 107 B |
 //! | [`BusSettings`] | 2 | Dynamixel ID; baud bit/s; protocol 1 or 2; return delay × 2 µs; status return level 0–2; CW and CCW angle limits (AX units, 0–1023); the other EEPROM-area registers ([`BusLimits`]: max torque, temperature and voltage limits, alarm LED, shutdown, X velocity and position limits) in their registers' units; ranges and defaults from `dynamixel::table` | [`BUS_MAX`] = 33 B |
 //! | [`FaultEntry`] | 1 | number since the last factory reset; [`protocol::FaultRecord`] (code, value, uptime ms) | [`FAULT_MAX`] = 17 B |
 //!
-//! A record of another version goes through [`Record::migrate`]: none exists yet, so it is
-//! rejected (`schema version 2 unknown (this firmware: 1)`) and the defaults are used —
-//! never decoded as the current layout. A test pins the config's bytes to its version.
+//! A record of another version goes through [`Record::migrate`]: an older one the firmware
+//! knows is converted (configuration and calibration version 1), any other is rejected
+//! (`schema version 3 unknown (this firmware: 2)`) and the defaults are used — never
+//! decoded as the current layout. A test pins the config's bytes to its version.
 //!
 //! # In flash, and power cuts
 //!

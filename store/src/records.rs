@@ -51,8 +51,9 @@ impl core::fmt::Display for Rejection {
 ///
 /// When a layout changes: keep the old struct (e.g. `ConfigV1`), bump [`Record::VERSION`],
 /// and make [`Record::migrate`] decode the old layout and convert it, checked like any
-/// other value afterwards. The calibration is at version 2 (version 1 migrates); the other
-/// records are at version 1.
+/// other value afterwards. The calibration and the configuration are at version 2
+/// (version 1 migrates), the bus settings at version 2 (version 1 is rejected), the fault
+/// entries at version 1.
 pub trait Record: Serialize + DeserializeOwned {
     /// Name in the boot log and in errors.
     const NAME: &'static str;
@@ -129,9 +130,60 @@ pub struct Config {
     pub command_timeout_ms: u32,
 }
 
+/// [`Config`] as version 1 stored it: [`Limits`] without the clutch tolerance.
+#[derive(Deserialize)]
+struct ConfigV1 {
+    clutch: Clutch,
+    link_inertia_kg_mm2: u32,
+    gains: Option<Gains>,
+    limits: LimitsV1,
+    command_timeout_ms: u32,
+}
+
+/// [`Limits`] before the clutch tolerance.
+#[derive(Deserialize)]
+struct LimitsV1 {
+    torque_margin_permille: u16,
+    current_ma: u16,
+    motor_torque_unm: u32,
+    duty_permille: u16,
+    position_min_urad: i32,
+    position_max_urad: i32,
+}
+
 impl Record for Config {
     const NAME: &'static str = "config";
-    const VERSION: u8 = 1;
+    const VERSION: u8 = 2;
+
+    /// Version 1 lacked the clutch tolerance: none (0 µm, the default).
+    fn migrate(version: u8, body: &[u8]) -> Result<Self, Rejection> {
+        if version != 1 {
+            return Err(Rejection::UnknownVersion {
+                found: version,
+                current: Self::VERSION,
+            });
+        }
+        let v1: ConfigV1 = match postcard::take_from_bytes(body) {
+            Ok((v, [])) => v,
+            _ => return Err(Rejection::Undecodable),
+        };
+        let l = v1.limits;
+        Ok(Config {
+            clutch: v1.clutch,
+            link_inertia_kg_mm2: v1.link_inertia_kg_mm2,
+            gains: v1.gains,
+            limits: Limits {
+                torque_margin_permille: l.torque_margin_permille,
+                current_ma: l.current_ma,
+                motor_torque_unm: l.motor_torque_unm,
+                duty_permille: l.duty_permille,
+                position_min_urad: l.position_min_urad,
+                position_max_urad: l.position_max_urad,
+                clutch_tolerance_um: 0,
+            },
+            command_timeout_ms: v1.command_timeout_ms,
+        })
+    }
 
     /// The checks of [`Request::validate`] on the equivalent requests, the controller's
     /// inertia range and the supervisor's timeout ≥ 1. Whether the design reaches the
@@ -511,6 +563,25 @@ impl Record for FaultEntry {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_version_1_config_migrates_without_a_clutch_tolerance() {
+        // The bytes version 1 wrote for the paper preset at 3 mm with the default limits
+        // (the layout test of `store.rs` pinned them before the clutch tolerance).
+        let v1 = [
+            1, 0, 0xB8, 0x17, 0xE8, 0x07, 0, 0xD2, 0x06, 0xDC, 0x0B, 0xE0, 0xC6, 0x5B, 0xE8, 0x07,
+            0xBF, 0x96, 0xB1, 0x02, 0xC0, 0x96, 0xB1, 0x02, 100,
+        ];
+        let c: Config = decode(&v1).unwrap();
+        assert_eq!(c.clutch, Clutch::LengthUm(3_000));
+        assert_eq!(c.link_inertia_kg_mm2, 1_000);
+        assert_eq!(c.gains, None);
+        assert_eq!(c.limits, Limits::DEFAULT);
+        assert_eq!(c.limits.clutch_tolerance_um, 0);
+        assert_eq!(c.command_timeout_ms, 100);
+        // A cut version 1 body is undecodable, not a default.
+        assert_eq!(decode::<Config>(&v1[..20]), Err(Rejection::Undecodable));
+    }
 
     #[test]
     fn a_version_1_calibration_migrates_with_the_nominal_sensors() {

@@ -23,8 +23,9 @@ const FAULT_KEY_BASE: u8 = 0x10;
 const SET_FORMAT: u8 = 1;
 
 /// Largest stored config record, bytes: version 1 + clutch (tag 1 + u32 5) + inertia 5 +
-/// gains (1 + 3 × u64 10) + limits (3 + 3 + 5 + 3 + 5 + 5) + timeout 5 (postcard varints).
-pub const CONFIG_MAX: usize = 1 + 6 + 5 + 31 + 24 + 5;
+/// gains (1 + 3 × u64 10) + limits (3 + 3 + 5 + 3 + 5 + 5 + 3) + timeout 5 (postcard
+/// varints).
+pub const CONFIG_MAX: usize = 1 + 6 + 5 + 31 + 27 + 5;
 /// Largest stored calibration record, bytes: version 1 + 3 signs (1 each) + 2 offsets
 /// (i16 varint 3) + 4 × u32 5 + 2 × `Option<u32>` 6 + u16 3, then (version 2) encoder
 /// counts (u16 3) + 2 gains (u32 5) + the pot error table (`Option<[u16; 16]>` 1 + 48).
@@ -643,21 +644,22 @@ mod tests {
 
     #[test]
     fn a_newer_or_older_schema_version_is_rejected_with_the_reason() {
-        for version in [0u8, 2, 255] {
+        // Version 1 migrates (`records`' tests); 0 and anything above 2 are unknown.
+        for version in [0u8, 3, 255] {
             let mut cfg = encoded(&config());
             cfg[0] = version;
             let (item, n) = raw_set(&cfg, &[], &encoded(&bus()));
             let boot = load_raw(&item[..n], &RangeChecks);
             let why = Rejection::UnknownVersion {
                 found: version,
-                current: 1,
+                current: 2,
             };
             assert_eq!(boot.report.config, Outcome::Rejected(why));
             assert_eq!(boot.set.config, None);
             assert_eq!(boot.set.bus, Some(bus()), "the other records still load");
             assert_eq!(
                 format!("{}", boot.report.config),
-                format!("rejected (schema version {version} unknown (this firmware: 1)), defaults")
+                format!("rejected (schema version {version} unknown (this firmware: 2)), defaults")
             );
         }
     }
@@ -896,6 +898,7 @@ mod tests {
                 duty_permille: u16::MAX,
                 position_min_urad: i32::MIN,
                 position_max_urad: i32::MIN,
+                clutch_tolerance_um: u16::MAX,
             },
             command_timeout_ms: u32::MAX,
         };
@@ -975,13 +978,14 @@ mod tests {
         assert_eq!(
             encoded(&config()),
             [
-                1, // version
+                2, // version
                 0, 0xB8, 0x17, // Clutch::LengthUm(3000)
                 0xE8, 0x07, // 1000 kg·mm²
                 0,    // automatic gains
                 0xD2, 0x06, 0xDC, 0x0B, 0xE0, 0xC6, 0x5B, 0xE8,
                 0x07, // limits: 850 ‰, 1500 mA, 1.5 N·m, 1000 ‰
                 0xBF, 0x96, 0xB1, 0x02, 0xC0, 0x96, 0xB1, 0x02, // ±2.5 rad (zig-zag)
+                0,    // no clutch tolerance
                 100,  // command timeout, ms
             ]
         );

@@ -73,11 +73,13 @@ pub fn config(c: &mut Client, cmd: ConfigCommand) -> client::Result<String> {
                 (
                     "limits",
                     format!(
-                        "torque margin {}, current {} A, motor torque {} N·m, duty {}",
+                        "torque margin {}, current {} A, motor torque {} N·m, duty {}, \
+                         clutch tolerance {} mm",
                         show(l.torque_margin_permille.into(), 3),
                         show(l.current_ma.into(), 3),
                         show(l.motor_torque_unm.into(), 6),
                         show(l.duty_permille.into(), 3),
+                        show(l.clutch_tolerance_um.into(), 3),
                     ),
                 ),
                 (

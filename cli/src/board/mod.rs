@@ -571,6 +571,10 @@ pub struct LimitsArgs {
     /// Upper end of the position window, e.g. 2.5rad [default: 2.5rad]
     #[arg(long, value_name = "ANGLE", allow_hyphen_values = true)]
     pub position_max: Option<String>,
+    /// How much longer than set the hand-set clutch may be, 0–5 mm: the torque limit and
+    /// the overload check use the beams' capacity at that length, e.g. 0.6mm [default: 0mm]
+    #[arg(long, value_name = "LENGTH")]
+    pub clutch_tolerance: Option<String>,
 }
 
 /// Arguments of `record`.
@@ -709,6 +713,10 @@ fn plan_limits(l: &LimitsArgs) -> CliResult<Limits> {
             Some(s) => quantities::angle_urad("limits --position-max", s)?,
             None => d.position_max_urad,
         },
+        clutch_tolerance_um: match &l.clutch_tolerance {
+            Some(s) => quantities::tolerance_um("limits --clutch-tolerance", s)?,
+            None => d.clutch_tolerance_um,
+        },
     };
     if lim.position_min_urad >= lim.position_max_urad {
         return Err(CliError::usage(
@@ -807,13 +815,14 @@ fn exec(action: &Action, s: &mut Session) -> CliResult<()> {
         Action::Limits(l) => c.set_limits(l).map(|()| {
             format!(
                 "limits set: torque margin {}, current {} A, motor torque {} N·m, duty {}, \
-                 position [{}, {}] rad\n",
+                 position [{}, {}] rad, clutch tolerance {} mm\n",
                 show(l.torque_margin_permille.into(), 3),
                 show(l.current_ma.into(), 3),
                 show(l.motor_torque_unm.into(), 6),
                 show(l.duty_permille.into(), 3),
                 show(l.position_min_urad.into(), 6),
-                show(l.position_max_urad.into(), 6)
+                show(l.position_max_urad.into(), 6),
+                show(l.clutch_tolerance_um.into(), 3)
             )
         }),
         Action::Wait(d) => c.wait(*d).map(|()| {

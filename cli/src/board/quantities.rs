@@ -4,10 +4,11 @@
 use std::time::Duration;
 
 use client::protocol::{
-    CLUTCH_MAX_UM, CLUTCH_MIN_UM, CURRENT_LIMIT_MAX_MA, IMPEDANCE_DAMPING_MAX_UNMS_PER_RAD,
-    IMPEDANCE_STIFFNESS_MIN_MNM_PER_RAD, IMPEDANCE_TORQUE_MAX_UNM, MOTOR_TORQUE_LIMIT_MAX_UNM,
-    MOVE_DURATION_MAX_MS, MOVE_DURATION_MIN_MS, SINE_AMPLITUDE_MAX_URAD, SINE_FREQUENCY_MAX_MHZ,
-    SINE_FREQUENCY_MIN_MHZ, TARGET_MAX_URAD, TELEMETRY_RATE_MAX_HZ, TELEMETRY_RATE_MIN_HZ,
+    CLUTCH_MAX_UM, CLUTCH_MIN_UM, CLUTCH_TOLERANCE_MAX_UM, CURRENT_LIMIT_MAX_MA,
+    IMPEDANCE_DAMPING_MAX_UNMS_PER_RAD, IMPEDANCE_STIFFNESS_MIN_MNM_PER_RAD,
+    IMPEDANCE_TORQUE_MAX_UNM, MOTOR_TORQUE_LIMIT_MAX_UNM, MOVE_DURATION_MAX_MS,
+    MOVE_DURATION_MIN_MS, SINE_AMPLITUDE_MAX_URAD, SINE_FREQUENCY_MAX_MHZ, SINE_FREQUENCY_MIN_MHZ,
+    TARGET_MAX_URAD, TELEMETRY_RATE_MAX_HZ, TELEMETRY_RATE_MIN_HZ,
 };
 
 use crate::error::{CliError, CliResult};
@@ -143,6 +144,19 @@ pub fn length_um(arg: &str, s: &str) -> CliResult<u32> {
         i64::from(CLUTCH_MAX_UM),
     )
     .map(to_u32)
+}
+
+/// A clutch tolerance in µm, 0–5 mm.
+pub fn tolerance_um(arg: &str, s: &str) -> CliResult<u16> {
+    scaled(
+        arg,
+        s,
+        Kind::Length,
+        3,
+        0,
+        i64::from(CLUTCH_TOLERANCE_MAX_UM),
+    )
+    .map(|v| u16::try_from(v).unwrap_or(u16::MAX))
 }
 
 /// A joint stiffness in mN·m/rad, > 0.

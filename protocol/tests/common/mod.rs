@@ -105,14 +105,16 @@ pub fn limits() -> impl Strategy<Value = Limits> {
         edge_u16(1, 1000),
         angle(),
         angle(),
+        edge_u16(0, 5_000),
     )
-        .prop_map(|(m, c, t, d, lo, hi)| Limits {
+        .prop_map(|(m, c, t, d, lo, hi, tol)| Limits {
             torque_margin_permille: m,
             current_ma: c,
             motor_torque_unm: t,
             duty_permille: d,
             position_min_urad: lo,
             position_max_urad: hi,
+            clutch_tolerance_um: tol,
         })
 }
 

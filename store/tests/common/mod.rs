@@ -95,14 +95,16 @@ fn limits() -> impl Strategy<Value = Limits> {
         1u16..=1000,
         -max..=0,
         1..=max,
+        0u16..=protocol::CLUTCH_TOLERANCE_MAX_UM,
     )
-        .prop_map(|(margin, current, torque, duty, min, max)| Limits {
+        .prop_map(|(margin, current, torque, duty, min, max, tol)| Limits {
             torque_margin_permille: margin,
             current_ma: current,
             motor_torque_unm: torque,
             duty_permille: duty,
             position_min_urad: min,
             position_max_urad: max,
+            clutch_tolerance_um: tol,
         })
 }
 
