@@ -24,12 +24,16 @@ use crate::board::Board;
 use crate::cmd::{cargo, target_dir};
 use crate::defmt_log::LogFormat;
 
-/// The configuration saved first (the "old" one of the cut sweeps): clutch 5 mm, 1.2 A.
-const OLD: (u32, u16) = (5_000, 1_200);
-/// The one saved over it (the "new" one): clutch 2 mm, 1.0 A.
-const NEW: (u32, u16) = (2_000, 1_000);
-/// The firmware's defaults (a factory reset's result): clutch 3 mm, 1.5 A.
-const DEFAULT: (u32, u16) = (3_000, 1_500);
+/// What the check sets and reads back: clutch length µm, current limit mA, clutch
+/// tolerance µm.
+type Settings = (u32, u16, u16);
+/// The configuration saved first (the "old" one of the cut sweeps): clutch 5 mm, 1.2 A,
+/// tolerance 0.6 mm.
+const OLD: Settings = (5_000, 1_200, 600);
+/// The one saved over it (the "new" one): clutch 2 mm, 1.0 A, tolerance 1 mm.
+const NEW: Settings = (2_000, 1_000, 1_000);
+/// The firmware's defaults (a factory reset's result): clutch 3 mm, 1.5 A, no tolerance.
+const DEFAULT: Settings = (3_000, 1_500, 0);
 
 /// Saves in the wear check (`VSA_PERSISTENCE_SAVES` overrides).
 const SAVES: u32 = 1_000;
@@ -143,10 +147,9 @@ impl Rig<'_> {
         lines
     }
 
-    /// Boots from `flash` and returns the configuration it came up with (clutch µm,
-    /// current limit mA) and its log; checks it answers, is disabled with no fault and
-    /// rejected no record.
-    fn boot_and_read(&self, flash: &Path) -> Result<((u32, u16), Vec<String>)> {
+    /// Boots from `flash` and returns the configuration it came up with and its log;
+    /// checks it answers, is disabled with no fault and rejected no record.
+    fn boot_and_read(&self, flash: &Path) -> Result<(Settings, Vec<String>)> {
         let mut r = self.boot(flash, None)?;
         let st = r.client.status().map_err(err("status"))?;
         let limits = r.client.limits().map_err(err("limits"))?;
@@ -160,14 +163,22 @@ impl Rig<'_> {
         if let Some(l) = lines.iter().find(|l| l.contains("rejected")) {
             bail!("a record was rejected at boot: {l}");
         }
-        Ok(((st.clutch_length_um, limits.current_ma), lines))
+        Ok((
+            (
+                st.clutch_length_um,
+                limits.current_ma,
+                limits.clutch_tolerance_um,
+            ),
+            lines,
+        ))
     }
 }
 
-fn configure(c: &mut Client, (clutch_um, current_ma): (u32, u16)) -> Result<()> {
+fn configure(c: &mut Client, (clutch_um, current_ma, clutch_tolerance_um): Settings) -> Result<()> {
     c.set_clutch_length(clutch_um).map_err(err("clutch"))?;
     c.set_limits(&Limits {
         current_ma,
+        clutch_tolerance_um,
         ..Limits::DEFAULT
     })
     .map_err(err("limits"))
@@ -236,7 +247,7 @@ fn cut_and_boot(
     base: &Path,
     cut_at: u64,
     op: impl Fn(&mut Client) -> Result<()>,
-) -> Result<(u32, u16)> {
+) -> Result<Settings> {
     let file = rig.file("cut.bin");
     std::fs::copy(base, &file).context("copying the flash file")?;
     let mut r = rig.boot(&file, Some(cut_at))?;
@@ -270,7 +281,7 @@ fn sweep(
     base: &Path,
     boot_words: u64,
     words: u64,
-    (what, before, after): (&str, (u32, u16), (u32, u16)),
+    (what, before, after): (&str, Settings, Settings),
     op: impl Fn(&mut Client) -> Result<()>,
 ) -> Result<(usize, usize, usize)> {
     let mut tally = (0, 0, 0);
