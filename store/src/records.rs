@@ -94,10 +94,27 @@ pub(crate) fn decode<R: Record>(bytes: &[u8]) -> Result<R, Rejection> {
     if version != R::VERSION {
         return R::migrate(version, body);
     }
-    match postcard::take_from_bytes::<R>(body) {
+    whole(body)
+}
+
+/// `body` as one `T` with nothing after it.
+fn whole<T: DeserializeOwned>(body: &[u8]) -> Result<T, Rejection> {
+    match postcard::take_from_bytes::<T>(body) {
         Ok((value, [])) => Ok(value),
         _ => Err(Rejection::Undecodable),
     }
+}
+
+/// For a [`Record::migrate`] that knows version 1 only: `body` decoded as version 1's
+/// layout `T`, or why not.
+fn version_1<R: Record, T: DeserializeOwned>(version: u8, body: &[u8]) -> Result<T, Rejection> {
+    if version != 1 {
+        return Err(Rejection::UnknownVersion {
+            found: version,
+            current: R::VERSION,
+        });
+    }
+    whole(body)
 }
 
 /// How the clutch was configured: the protocol's two requests for it, in their units.
@@ -157,16 +174,7 @@ impl Record for Config {
 
     /// Version 1 lacked the clutch tolerance: none (0 µm, the default).
     fn migrate(version: u8, body: &[u8]) -> Result<Self, Rejection> {
-        if version != 1 {
-            return Err(Rejection::UnknownVersion {
-                found: version,
-                current: Self::VERSION,
-            });
-        }
-        let v1: ConfigV1 = match postcard::take_from_bytes(body) {
-            Ok((v, [])) => v,
-            _ => return Err(Rejection::Undecodable),
-        };
+        let v1: ConfigV1 = version_1::<Self, _>(version, body)?;
         let l = v1.limits;
         Ok(Config {
             clutch: v1.clutch,
@@ -260,17 +268,8 @@ impl Record for Calibration {
     /// Version 1 lacked the encoder's counts per turn, the gains and the pot's error
     /// table: those of the nominal build (4096 counts, unit gains, no table).
     fn migrate(version: u8, body: &[u8]) -> Result<Self, Rejection> {
-        if version != 1 {
-            return Err(Rejection::UnknownVersion {
-                found: version,
-                current: Self::VERSION,
-            });
-        }
         // Version 1 wrote exactly the host link's fields.
-        let v1: protocol::Calibration = match postcard::take_from_bytes(body) {
-            Ok((v, [])) => v,
-            _ => return Err(Rejection::Undecodable),
-        };
+        let v1: protocol::Calibration = version_1::<Self, _>(version, body)?;
         Ok(Calibration {
             wire: v1,
             encoder_counts_per_turn: model::sensors::ENCODER_COUNTS,
