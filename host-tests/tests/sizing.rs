@@ -114,11 +114,14 @@ proptest! {
             let v_o = o.envelope_volume(total_m) * 1e9;
             prop_assert!((v.to_num::<f64>() - v_o).abs() <= 1e-6 * v_o + 1e-9, "volume {v} mm³ vs {v_o}");
         }
-        // Slot fit, away from the boundary (the model's sine is a table within 1e-8).
+        // Slot fit, away from the boundary: the model's sin(π/n) is a 256-step quarter
+        // table, linearly interpolated, which reads low by up to h²/8·sin x (h = π/512,
+        // |sin''| = sin): 4.7e-6 relative; twice that is left out.
         let rs = o.slot_radius();
         let chord = if n < 2 { f64::INFINITY } else { o.pitch_r * (std::f64::consts::PI / f64::from(n)).sin() };
         let gap = (chord.min(o.pitch_r) - rs) / rs;
-        if gap.abs() > 1e-6 {
+        let h = std::f64::consts::PI / 512.0;
+        if gap.abs() > 2.0 * h * h / 8.0 {
             prop_assert_eq!(slots_fit(&d), o.slots_fit(), "gap {}", gap);
         }
     }
