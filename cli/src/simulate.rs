@@ -221,8 +221,11 @@ fn config(args: &SimulateArgs) -> Result<Config, String> {
     cfg.link_inertia =
         Inertia::from_micro(micro(j, "--inertia")?).map_err(|e| format!("--inertia: {e}"))?;
     let tol = parse(&args.clutch_tolerance, "--clutch-tolerance", LENGTH_MM)?;
-    if !(0.0..=5.0).contains(&tol) {
-        return Err(format!("--clutch-tolerance: {tol} mm is outside 0 to 5 mm"));
+    let max = model::control::MAX_CLUTCH_TOLERANCE_MM;
+    if !(0.0..=f64::from(max)).contains(&tol) {
+        return Err(format!(
+            "--clutch-tolerance: {tol} mm is outside 0 to {max} mm"
+        ));
     }
     cfg.limits.clutch_tolerance = Length::from_micro(micro(tol, "--clutch-tolerance")?)
         .map_err(|e| format!("--clutch-tolerance: {e}"))?;

@@ -96,7 +96,6 @@ impl ClutchLimits {
         let setting = sched.setting();
         let cap = setting.torque_capacity().to_bits();
         let tol = sched.clutch_tolerance().to_bits().max(0);
-        let cap_weak = sched.weak_capacity().to_bits();
         // 1.1^(−1/3) = 0.96873, Q16 63486.
         let cap_confirmed = if tol == 0 {
             cap
@@ -117,7 +116,8 @@ impl ClutchLimits {
             half_count_q16: POT_COUNT_Q32 >> 17,
             contact_q16: sched.contact_torque_q16.max(1 << 11),
             evidence,
-            cap_weak: if tol == 0 { cap } else { cap_weak },
+            // τ_cap(L) itself without a tolerance.
+            cap_weak: sched.weak_capacity().to_bits(),
             cap_confirmed,
             kt: sched.kt,
             jg_dt: sched.gear_inertia_per_dt,

@@ -17,9 +17,10 @@
 //! | 9 | [`FaultCode::CommandTimeout`] | heartbeats armed and none for `command_timeout_ms` | ms since the last |
 //! | 10 | [`FaultCode::ClutchMismatch`] | the clutch monitor's compliance estimate shows the beams softer than configured beyond its tolerance ([`crate::clutch_monitor`]) | estimated/configured compliance, ‰ |
 //!
-//! With a clutch tolerance above 0 (`control::Limits::clutch_tolerance`, the default) the
-//! torque check compares against the clutch monitor's capacity (the weakest the tolerance allows until the stiffness is confirmed)
-//! instead of τ_cap(L).
+//! With a clutch tolerance above 0 (`control::Limits::clutch_tolerance`, default 0) the
+//! torque and stuck-sensor checks compare against the clutch monitor's capacity (the
+//! weakest the tolerance allows until the monitor, if on, confirms the stiffness) instead
+//! of τ_cap(L).
 //!
 //! Deflection envelope: φ_b + θ_cap(L) + one pot count + half an encoder count (the two
 //! quantisations) + the pot's error: any larger measured deflection means the beams are
@@ -527,7 +528,7 @@ impl Supervisor {
 
     /// The clutch monitor's constants when it runs.
     fn monitor_limits(&self) -> Option<&ClutchLimits> {
-        self.clutch_lim.as_ref().filter(|_| self.cfg.clutch_monitor)
+        monitor_running(&self.clutch_lim, &self.cfg)
     }
 
     /// Deflection envelope (φ_b + θ_cap + the pot's error + quantisation) the overload and
@@ -698,7 +699,8 @@ impl Supervisor {
             self.prev_pot = Some(pot);
             let theta_g = i64::from(i32::from(pot) - th.pot_center).saturating_mul(POT_COUNT_Q32);
             let phi = theta_g.saturating_sub(out.link_angle.to_bits());
-            let mismatch = match self.clutch_lim.as_ref().filter(|_| self.cfg.clutch_monitor) {
+            // The fields, not `monitor_limits`: the monitor itself is borrowed mutably.
+            let mismatch = match monitor_running(&self.clutch_lim, &self.cfg) {
                 Some(lim) if self.clutch.update(phi, out, lim) => {
                     let r = self.clutch.ratio_q16(lim).unwrap_or(0);
                     Some(((r * 1000) >> 16).clamp(0, i64::from(i32::MAX)) as i32)
@@ -753,6 +755,14 @@ impl Supervisor {
         }
         new
     }
+}
+
+/// The clutch monitor's constants when `cfg` runs it (and a clutch tolerance gave them).
+fn monitor_running<'a>(
+    lim: &'a Option<ClutchLimits>,
+    cfg: &SupervisorConfig,
+) -> Option<&'a ClutchLimits> {
+    lim.as_ref().filter(|_| cfg.clutch_monitor)
 }
 
 /// I32F32 bits → millionths (µrad, µN·m), saturated to i32.

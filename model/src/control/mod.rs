@@ -55,6 +55,6 @@ pub use schedule::{
     Schedule, BRAKE_FRACTION, BW_MAX, BW_RATIO, DERIV_FILTER_N, FREE_PLAY_SWITCH_NM,
 };
 pub use trajectory::{Command, Reference, Trajectory};
-pub use validate::{MAX_INERTIA, MAX_STIFFNESS, MIN_INERTIA};
+pub use validate::{MAX_CLUTCH_TOLERANCE_MM, MAX_INERTIA, MAX_STIFFNESS, MIN_INERTIA};
 // The bench's float port imports it from here.
 pub use crate::sensors::encoder_delta;

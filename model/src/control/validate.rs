@@ -15,6 +15,8 @@ pub const MAX_STIFFNESS: i64 = 1_000_000;
 pub const MIN_INERTIA: i32 = 1;
 /// Largest link inertia, kg·mm² (1 kg·m²).
 pub const MAX_INERTIA: i32 = 1_000_000;
+/// Largest clutch tolerance, mm.
+pub const MAX_CLUTCH_TOLERANCE_MM: i32 = 5;
 
 fn in_range(v: I32F32, lo: I32F32, hi: I32F32) -> bool {
     v >= lo && v <= hi
@@ -59,7 +61,7 @@ pub(crate) fn validate(design: &Design, cfg: &Config) -> Result<Setting, Control
         && in_range(
             lim.clutch_tolerance.get(),
             I32F32::ZERO,
-            I32F32::from_num(5),
+            I32F32::from_num(MAX_CLUTCH_TOLERANCE_MM),
         ))
     {
         return Err(E::LimitOutOfRange);
