@@ -265,6 +265,29 @@ impl Design {
         self.stiffness(l_act) * 2.4 * self.mu * self.pitch_r * phi.powi(3) / (3.0 * l_act)
     }
 
+    /// The friction hysteresis as an equivalent viscous damper between gear and link
+    /// \[N·m·s/rad\], for a deflection (beyond the free play) φ₀ + Δ·sin(ωt) that stays on
+    /// one side (|φ₀| ≥ Δ): the describing function's b = W/(π·ω·Δ²), where
+    /// W = ∫ (τ_load − τ_unload) dφ over φ₀ − Δ … φ₀ + Δ is the energy one cycle dissipates
+    /// between the two branches and π·ω·b·Δ² a damper's (Simpson's rule, 400 intervals).
+    pub fn hysteresis_damping(&self, phi0: f64, delta: f64, omega: f64, l_act: f64) -> f64 {
+        let (phi0, delta) = (phi0.abs(), delta.abs());
+        if delta == 0.0 || omega == 0.0 {
+            return 0.0;
+        }
+        let n = 400;
+        let h = 2.0 * delta / f64::from(n);
+        let band = |i: i32| {
+            let phi = phi0 - delta + h * f64::from(i);
+            self.torque_loading(phi, l_act) - self.torque_unloading(phi, l_act)
+        };
+        let inner: f64 = (1..n)
+            .map(|i| if i % 2 == 1 { 4.0 } else { 2.0 } * band(i))
+            .sum();
+        let w = h / 3.0 * (band(0) + inner + band(n));
+        w / (PI * omega * delta * delta)
+    }
+
     /// Elastic coupling torque with the output free play as a dead zone \[N·m\]: 0 for
     /// |φ| ≤ φ_b, k(L)·(|φ| − φ_b)·sign(φ) beyond (`docs/design.md` §2 table, row "output free
     /// play").
@@ -421,9 +444,10 @@ pub fn min_active_length(torque: f64, theta: f64, e: f64, sigma_allow: f64) -> f
 }
 
 /// The actuator as a linear two-mass system: gear (motor and gearbox at the output) J_g
-/// with viscous friction b_g, driven by the motor torque k_t·i; beams k; link J_l with
-/// viscous friction b_l and a constant load; i = (V − k_e·ω_g)/R (no inductance,
-/// `docs/design.md` §3).
+/// with viscous friction b_g, driven by the motor torque k_t·i; beams k with a damper b_c
+/// in parallel (the beams' friction hysteresis, linearised by
+/// [`Design::hysteresis_damping`], or 0); link J_l with viscous friction b_l and a constant
+/// load; i = (V − k_e·ω_g)/R (no inductance, `docs/design.md` §3).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TwoMass {
     /// Gear-side inertia at the output \[kg·m²\].
@@ -432,6 +456,8 @@ pub struct TwoMass {
     pub j_link: f64,
     /// Coupling stiffness \[N·m/rad\].
     pub k: f64,
+    /// Coupling damping in parallel with the beams \[N·m·s/rad\].
+    pub b_coupling: f64,
     /// Gear viscous friction \[N·m·s/rad\].
     pub b_gear: f64,
     /// Link viscous friction \[N·m·s/rad\].
@@ -454,13 +480,19 @@ impl TwoMass {
 
     /// Gear amplitude over link amplitude and the motor torque amplitude \[N·m\] when the
     /// link follows A·sin(ωt) exactly (complex amplitudes, the link's as the reference):
-    /// k·(Θ_g − Θ_l) = (−J_l·ω² + jω·b_l)·Θ_l, T_m = (−J_g·ω² + jω·b_g)·Θ_g + k·(Θ_g − Θ_l).
+    /// (k + jω·b_c)·(Θ_g − Θ_l) = (−J_l·ω² + jω·b_l)·Θ_l,
+    /// T_m = (−J_g·ω² + jω·b_g)·Θ_g + (k + jω·b_c)·(Θ_g − Θ_l).
     fn phasors(&self, amplitude: f64, omega: f64) -> ((f64, f64), (f64, f64)) {
-        let spring = (-self.j_link * omega * omega, omega * self.b_link); // k·(Θ_g − Θ_l)/Θ_l
-        let theta_g = (
-            amplitude * (1.0 + spring.0 / self.k),
-            amplitude * spring.1 / self.k,
+        // (k + jω·b_c)·(Θ_g − Θ_l)/Θ_l
+        let spring = (-self.j_link * omega * omega, omega * self.b_link);
+        // (Θ_g − Θ_l)/Θ_l = spring/(k + jω·b_c)
+        let (cr, ci) = (self.k, omega * self.b_coupling);
+        let den = cr * cr + ci * ci;
+        let rel = (
+            (spring.0 * cr + spring.1 * ci) / den,
+            (spring.1 * cr - spring.0 * ci) / den,
         );
+        let theta_g = (amplitude * (1.0 + rel.0), amplitude * rel.1);
         let gear = (-self.j_gear * omega * omega, omega * self.b_gear);
         let torque = (
             gear.0 * theta_g.0 - gear.1 * theta_g.1 + amplitude * spring.0,
@@ -486,5 +518,12 @@ impl TwoMass {
     pub fn gear_amplitude(&self, amplitude: f64, omega: f64) -> f64 {
         let (g, _) = self.phasors(amplitude, omega);
         g.0.hypot(g.1)
+    }
+
+    /// Amplitude of the beams' deflection Θ_g − Θ_l \[rad\] when the link follows
+    /// A·sin(ωt).
+    pub fn deflection_amplitude(&self, amplitude: f64, omega: f64) -> f64 {
+        let (g, _) = self.phasors(amplitude, omega);
+        (g.0 - amplitude).hypot(g.1)
     }
 }

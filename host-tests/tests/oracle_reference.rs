@@ -253,6 +253,50 @@ fn hysteresis_loop_area_grows_with_phi_and_shorter_length() {
     assert!(areas[0] < areas[1] && areas[1] < areas[2], "{areas:?}");
 }
 
+/// The hysteresis as an equivalent damper: for a swing φ₀ ± Δ on one side the branches
+/// enclose W = (2·k·c/3)·((φ₀ + Δ)³ − (φ₀ − Δ)³) = 4·k·c·φ₀²·Δ + (4/3)·k·c·Δ³ with
+/// c = (6/5)·μ·R/L (integrated by hand from the §2.1 branches k·φ·(1 ± c·φ)), and a damper
+/// b dissipates π·b·ω·Δ² a cycle. A damper that size in the two-mass model takes W a cycle
+/// from the motor (its mechanical input grows by W at the coupling mode, where the
+/// undamped model needs none).
+#[test]
+fn hysteresis_damping_dissipates_the_loop() {
+    let d = Design::paper();
+    for (phi0, delta, w, l_mm) in [
+        (0.08, 0.03, 36.4, 15.0),
+        (0.003, 0.001, 36.4, 5.0),
+        (0.02, 0.02, 10.0, 3.0),
+    ] {
+        let l = l_mm * MM;
+        let k = d.stiffness(l);
+        let c = 1.2 * d.mu * d.pitch_r / l;
+        let w_loop = 4.0 * k * c * phi0 * phi0 * delta + 4.0 / 3.0 * k * c * delta.powi(3);
+        let b = d.hysteresis_damping(phi0, delta, w, l);
+        let want = w_loop / (std::f64::consts::PI * w * delta * delta);
+        assert!((b / want - 1.0).abs() < 1e-9, "{b} vs {want}");
+    }
+    assert_eq!(d.hysteresis_damping(0.01, 0.0, 10.0, 4.0 * MM), 0.0);
+    // Without copper loss and other friction the motor's electrical input is
+    // (k_e/k_t) × what the coupling damper dissipates, π·b_c·ω·|Θ_g − Θ_l|².
+    let m = host_tests::oracle::TwoMass {
+        j_gear: 3.2e-3,
+        j_link: 3.2e-3,
+        k: 2.0,
+        b_coupling: 4e-3,
+        b_gear: 0.0,
+        b_link: 0.0,
+        resistance: 0.0,
+        k_t: 1.0,
+        k_e: 1.94,
+        load: 0.0,
+    };
+    let (a, w) = (0.015, m.natural_frequency());
+    let delta = m.deflection_amplitude(a, w);
+    let want = 1.94 * std::f64::consts::PI * 4e-3 * w * delta * delta;
+    let got = m.energy_per_cycle(a, w);
+    assert!((got / want - 1.0).abs() < 1e-9, "{got} vs {want}");
+}
+
 /// The follower's torque is the branch's: equal to a few ulps (an optimised build
 /// evaluates the same expression inlined in another order of rounding).
 fn assert_same(got: f64, branch: f64) {

@@ -279,6 +279,7 @@ fn two_mass_model_by_hand() {
         j_gear: 3.2e-3,
         j_link: 1.6e-3,
         k: 2.0,
+        b_coupling: 0.0,
         b_gear: 0.0,
         b_link: 0.0,
         resistance: 8.0,
