@@ -35,8 +35,9 @@
 use core::f32::consts::PI;
 
 use model::control::schedule::{
-    CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM, IMPACT_SPEED_FRACTION,
-    OBSERVER_RATIO, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM, REST_ZONE_FREE_PLAYS,
+    CONTACT_TORQUE_NM, CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM,
+    IMPACT_SPEED_FRACTION, OBSERVER_RATIO, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM,
+    REST_ZONE_FREE_PLAYS,
 };
 use model::control::{dash, Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
@@ -205,7 +206,7 @@ impl FloatSchedule {
             impact_speed: i32f32(IMPACT_SPEED_FRACTION.to_bits())
                 * i32f32(sched.torque_limit().to_bits())
                 / libm::sqrtf(k * j_g * j_l / j),
-            contact_torque: i32f32(FREE_PLAY_SWITCH_NM.to_bits()) / 2.0,
+            contact_torque: i32f32(CONTACT_TORQUE_NM.to_bits()),
             obs_beta: 2.0 * w_c / OBSERVER_RATIO as f32 * DT,
             obs_beta2: (w_c / OBSERVER_RATIO as f32) * (w_c / OBSERVER_RATIO as f32) * DT,
             float_load: i32f32(FLOAT_LOAD_NM.to_bits()) / c * dpv,

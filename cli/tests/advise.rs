@@ -126,8 +126,8 @@ fn a_reachable_resonance_is_located() {
 /// at resonance as at the stiffest setting, so its friction costs about the same in both
 /// and cancels in the difference); a 0.17 N·m load larger than the link's inertial torque
 /// J_l·A·ω² = 0.064 N·m, so the beams stay engaged on one side of the free play (the
-/// coupling torque stays within 0.106…0.234 N·m, out of the free-play compensation's
-/// 0.1 N·m switching band and below 0.85·τ_cap(15 mm) = 0.26 N·m); a 20 mm beam so that
+/// coupling torque stays within 0.106…0.234 N·m, below 0.85·τ_cap(15 mm) = 0.26 N·m);
+/// a 20 mm beam so that
 /// the resonance at J_g = J_l (ω² = 2k/J) falls at L = 15 mm, 5.8 Hz. Lengths around it far
 /// enough apart that the two-mass model separates them clearly.
 struct HandCheck;
@@ -187,8 +187,8 @@ impl HandCheck {
 /// stiffest setting). The gear's Coulomb friction, which the model leaves out, costs about
 /// the same at both settings (the gear swings about as far) and cancels.
 ///
-/// Measured: 9.39 mJ saved (51.43 → 42.05 mJ per cycle) against the model's 9.49 mJ
-/// (50.32 → 40.82 mJ); without the hysteresis term the model says 10.38 mJ.
+/// Measured: 8.87 mJ saved (50.87 → 42.00 mJ per cycle) against the model's 9.49 mJ
+/// (50.32 → 40.82 mJ), 6.5 % apart; without the hysteresis term the model says 10.38 mJ.
 #[test]
 fn a_task_at_the_natural_frequency_saves_what_two_masses_predict() {
     let (d, w) = HandCheck::omega();
@@ -215,8 +215,8 @@ fn a_task_at_the_natural_frequency_saves_what_two_masses_predict() {
 
 /// The hand check, choice part: the advisor must pick the resonant setting. Ignored: the
 /// controller does not yet track the task there within the advisor's tolerance (RMS error
-/// ≤ 10 % of the motion's RMS, 1.06 mrad). Measured: 3.1 mrad at L = 15 mm (29 mrad before
-/// the sine's two-mass feed-forward), 0.15 mrad at 5 mm; the rest is what the
+/// ≤ 10 % of the motion's RMS, 1.06 mrad). Measured: 3.9 mrad at L = 15 mm (29 mrad before
+/// the sine's two-mass feed-forward), 0.29 mrad at 5 mm; the rest is what the
 /// controller's model leaves out at the resonance, where no motor torque drives the motion
 /// and the losses decide the amplitude (Coulomb gear friction, beam hysteresis), and the
 /// slow position loop of soft settings (ω_c = 5.2 rad/s at 15 mm) that corrects neither at

@@ -52,7 +52,8 @@ pub use error::ControlError;
 pub use gain::Gain;
 pub use impedance::{Impedance, ImpedanceCommand, ImpedanceError};
 pub use schedule::{
-    Schedule, BRAKE_FRACTION, BW_MAX, BW_RATIO, DERIV_FILTER_N, FREE_PLAY_SWITCH_NM,
+    Schedule, BRAKE_FRACTION, BW_MAX, BW_RATIO, CONTACT_TORQUE_NM, DERIV_FILTER_N,
+    FREE_PLAY_SWITCH_NM,
 };
 pub use trajectory::{Command, Reference, Trajectory};
 pub use validate::{MAX_CLUTCH_TOLERANCE_MM, MAX_INERTIA, MAX_STIFFNESS, MIN_INERTIA};

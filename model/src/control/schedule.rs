@@ -27,9 +27,11 @@ pub const DERIV_FILTER_N: i32 = 4;
 /// Fraction of the current-limited deceleration k_t·i_lim/J the braking governor counts
 /// on (the rest covers an assisting load and friction).
 pub const BRAKE_FRACTION: I32F32 = I32F32::lit("0.5");
-/// Torque width over which the free-play compensation switches sides, N·m (≈ the gear
-/// train's dry friction).
-pub const FREE_PLAY_SWITCH_NM: I32F32 = I32F32::lit("0.1");
+/// Torque width over which the free-play compensation switches sides, N·m
+/// (docs/design.md §11 step 7: measured against 0.1, 2 and 5 N·m).
+pub const FREE_PLAY_SWITCH_NM: I32F32 = I32F32::lit("1");
+/// Coupling torque beyond which the beams count as carrying torque on one side, N·m.
+pub const CONTACT_TORQUE_NM: I32F32 = I32F32::lit("0.05");
 /// Armature-resistance error the back-EMF observer's dead bands allow for, as a fraction
 /// of the configured R: copper from cold to hot (+40 %, docs/design.md §9). With R off by ΔR
 /// the observer reads ω_g + ΔR·i/k_e.
@@ -100,7 +102,7 @@ pub struct Schedule {
     /// further across the free play (impact torque τ_lim, see `impact_speed`), rad/s Q16.
     pub(crate) impact_speed_q16: i32,
     /// |τ̂| above which the beams are taken to be in contact on the side of τ̂'s sign,
-    /// N·m Q16 (half `FREE_PLAY_SWITCH_NM`).
+    /// N·m Q16 (`CONTACT_TORQUE_NM`).
     pub(crate) contact_torque_q16: i32,
     pub(crate) kd: Gain,
     /// dt = 1 ms (rad/s → rad per tick, applied wide) and the complementary filter's
@@ -388,7 +390,7 @@ impl Schedule {
                 impact_speed(&p, stiffness, tau_lim)?,
                 wide(IMPACT_SPEED_FRACTION),
             )?)?,
-            contact_torque_q16: to_q16(wide(FREE_PLAY_SWITCH_NM) / 2)?,
+            contact_torque_q16: to_q16(wide(CONTACT_TORQUE_NM))?,
             kd: to_gain(wide(gains.kd))?,
             dt: to_gain(dt)?,
             obs_beta: to_gain(
