@@ -225,7 +225,7 @@ impl FloatSchedule {
             inv_k: 1.0 / k,
             k,
             free_play,
-            fp_slope: free_play / 0.1,
+            fp_slope: free_play / i32f32(FREE_PLAY_SWITCH_NM.to_bits()),
             torque_per_duty: c / dpv,
             duty_per_amp: dpv * r,
             w_per_duty: v_s / 1000.0 / ke,
