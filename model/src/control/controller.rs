@@ -735,13 +735,11 @@ mod tests {
 
     #[test]
     fn limits_are_reported() {
-        // Link stuck at 0, gear free: a 1 rad step drives the current window.
+        // Link stuck at 0, gear free: a 1 rad jump of the reference drives the current
+        // window at once (a raw step's profile starts gently).
         let mut c = ctl(5);
         c.step(&meas(0, 2048));
-        c.command(Command::Step {
-            target: Angle::from_int(1),
-        })
-        .unwrap();
+        c.jump(Angle::from_int(1)).unwrap();
         let o = c.step(&meas(0, 2048));
         // At rest the window is ±R·i_lim·1000/V, i_lim = 0.85·τ_cap(L)/k_t (beam-limited):
         // 0.78 A, 521 ‰.
@@ -760,10 +758,7 @@ mod tests {
         );
         let mut c = ctl(1);
         c.step(&meas(0, 2048));
-        c.command(Command::Step {
-            target: Angle::from_int(1),
-        })
-        .unwrap();
+        c.jump(Angle::from_int(1)).unwrap();
         let o = c.step(&meas(0, 2048));
         // L = 1 mm: the motor limit (1.5 A → 1000 ‰) binds, together with the duty limit.
         assert!(o.flags.current_limited && o.flags.duty_saturated && !o.flags.torque_limited);
