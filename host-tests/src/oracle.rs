@@ -269,22 +269,15 @@ impl Design {
     /// \[N·m·s/rad\], for a deflection (beyond the free play) φ₀ + Δ·sin(ωt) that stays on
     /// one side (|φ₀| ≥ Δ): the describing function's b = W/(π·ω·Δ²), where
     /// W = ∫ (τ_load − τ_unload) dφ over φ₀ − Δ … φ₀ + Δ is the energy one cycle dissipates
-    /// between the two branches and π·ω·b·Δ² a damper's (Simpson's rule, 400 intervals).
+    /// between the two branches (the difference of two [`Design::hysteresis_loop_energy`]
+    /// integrals from 0) and π·ω·b·Δ² a damper's.
     pub fn hysteresis_damping(&self, phi0: f64, delta: f64, omega: f64, l_act: f64) -> f64 {
         let (phi0, delta) = (phi0.abs(), delta.abs());
         if delta == 0.0 || omega == 0.0 {
             return 0.0;
         }
-        let n = 400;
-        let h = 2.0 * delta / f64::from(n);
-        let band = |i: i32| {
-            let phi = phi0 - delta + h * f64::from(i);
-            self.torque_loading(phi, l_act) - self.torque_unloading(phi, l_act)
-        };
-        let inner: f64 = (1..n)
-            .map(|i| if i % 2 == 1 { 4.0 } else { 2.0 } * band(i))
-            .sum();
-        let w = h / 3.0 * (band(0) + inner + band(n));
+        let w = self.hysteresis_loop_energy(phi0 + delta, l_act)
+            - self.hysteresis_loop_energy(phi0 - delta, l_act);
         w / (PI * omega * delta * delta)
     }
 

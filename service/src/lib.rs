@@ -412,6 +412,11 @@ fn wire_gains(g: &PidGains) -> Gains {
     }
 }
 
+// The wire's bound on the clutch tolerance is the controller's, in µm.
+const _: () = assert!(
+    protocol::CLUTCH_TOLERANCE_MAX_UM as i32 == model::control::MAX_CLUTCH_TOLERANCE_MM * 1000
+);
+
 /// `config` and `supervision` with the wire `limits` (the supervisor trips
 /// [`TRIP_ABOVE_LIMIT_A`] above the current limit).
 fn with_limits(
