@@ -8,7 +8,7 @@
 //!
 //! * [`FloatController::step`] is `model::control::Controller::step` (encoder unwrapping,
 //!   back-EMF observer, blended torque estimate, reference, feed-forward (the two-mass
-//!   inverse for a sine), free-play
+//!   inverse for a sine, the gear's Coulomb friction), free-play and hysteresis
 //!   compensation, PID, current/duty window, braking governor, anti-windup);
 //! * [`FloatSupervisor::check`] is `model::supervisor::Supervisor::check` (every check, in
 //!   the same order, with the same latch);
@@ -35,9 +35,9 @@
 use core::f32::consts::PI;
 
 use model::control::schedule::{
-    CONTACT_TORQUE_NM, CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM,
-    IMPACT_SPEED_FRACTION, OBSERVER_RATIO, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM,
-    REST_ZONE_FREE_PLAYS,
+    CONTACT_TORQUE_NM, COULOMB_RAMP_RAD_S, CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM,
+    FREE_PLAY_SWITCH_NM, IMPACT_SPEED_FRACTION, OBSERVER_RATIO, RESISTANCE_TOLERANCE, REST_LOAD_NM,
+    REST_TORQUE_NM, REST_ZONE_FREE_PLAYS,
 };
 use model::control::{dash, Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
@@ -145,6 +145,11 @@ pub struct FloatSchedule {
     ff_defl: f32,
     j_link: f32,
     inv_k: f32,
+    /// The hysteresis coefficient c (design §2.1), per rad.
+    hyst_c: f32,
+    /// The gear's Coulomb friction as a duty, ‰, and its ramp, ‰ per rad/s.
+    coulomb: f32,
+    coulomb_ramp: f32,
     k: f32,
     free_play: f32,
     fp_slope: f32,
@@ -223,6 +228,14 @@ impl FloatSchedule {
             ff_defl: dpv * ke * 1000.0,
             j_link: j_l,
             inv_k: 1.0 / k,
+            hyst_c: sched
+                .setting()
+                .hysteresis_coefficient()
+                .map_or(0.0, |c| c.to_num::<f32>()),
+            coulomb: dpv * r * i32f32(m.coulomb.to_bits()) / kt,
+            coulomb_ramp: dpv * r * i32f32(m.coulomb.to_bits())
+                / kt
+                / i32f32(COULOMB_RAMP_RAD_S.to_bits()),
             k,
             free_play,
             fp_slope: free_play / i32f32(FREE_PLAY_SWITCH_NM.to_bits()),
@@ -585,6 +598,7 @@ pub struct FloatController {
     duty_prev: i16,
     defl_prev: f32,
     defl_valid: bool,
+    elastic_prev: f32,
     theta_g: f32,
     theta_g_valid: bool,
     rest_ticks: u8,
@@ -615,6 +629,7 @@ impl FloatController {
             duty_prev: 0,
             defl_prev: 0.0,
             defl_valid: false,
+            elastic_prev: 0.0,
             theta_g: 0.0,
             theta_g_valid: false,
             rest_ticks: 0,
@@ -766,18 +781,33 @@ impl FloatController {
         let u_i = self.integ;
         let tau_ref = s.j_link * r.acceleration + s.torque_per_duty * u_i;
         let side = (s.fp_slope * tau_ref).clamp(-s.free_play, s.free_play);
-        let defl = s.inv_k * tau_ref + side;
-        let u_defl = if self.defl_valid {
-            s.ff_defl * (defl - self.defl_prev)
+        // Hysteresis band φ₀ ± c·φ₀² (a play operator).
+        let phi0 = s.inv_k * tau_ref;
+        let elastic = if self.defl_valid {
+            let h = s.hyst_c * phi0 * phi0;
+            self.elastic_prev.clamp(phi0 - h, phi0 + h)
+        } else {
+            phi0
+        };
+        self.elastic_prev = elastic;
+        let defl = elastic + side;
+        let d_defl = if self.defl_valid {
+            defl - self.defl_prev
         } else {
             0.0
+        };
+        let u_defl = s.ff_defl * d_defl;
+        let u_coulomb = if floating || (r.velocity == 0.0 && r.acceleration == 0.0) {
+            0.0
+        } else {
+            (s.coulomb_ramp * (r.velocity + d_defl * 1000.0)).clamp(-s.coulomb, s.coulomb)
         };
         self.defl_prev = defl;
         self.defl_valid = true;
 
         // --- PID ---
         let u_p = if resting { 0.0 } else { s.kp * e_p };
-        let u = u_ff + u_defl + u_p + u_i + s.kd * (self.w_ref - self.w_fb);
+        let u = u_ff + u_defl + u_coulomb + u_p + u_i + s.kd * (self.w_ref - self.w_fb);
 
         // --- limits ---
         let emf = s.duty_per_w * w_gear;
@@ -826,7 +856,10 @@ impl FloatController {
         // --- integrator ---
         let inc = if in_count || resting {
             let slip = w_gear - r.velocity;
-            if libm::fabsf(slip) <= s.w_deadband + s.w_bias_per_amp * libm::fabsf(current) {
+            if libm::fabsf(slip) <= s.w_deadband + s.w_bias_per_amp * libm::fabsf(current)
+                || r.velocity != 0.0
+                || r.acceleration != 0.0
+            {
                 0.0
             } else {
                 -s.kp_dt * slip

@@ -187,8 +187,8 @@ impl HandCheck {
 /// stiffest setting). The gear's Coulomb friction, which the model leaves out, costs about
 /// the same at both settings (the gear swings about as far) and cancels.
 ///
-/// Measured: 8.87 mJ saved (50.87 → 42.00 mJ per cycle) against the model's 9.49 mJ
-/// (50.32 → 40.82 mJ), 6.5 % apart; without the hysteresis term the model says 10.38 mJ.
+/// Measured: 8.71 mJ saved (51.95 → 43.24 mJ per cycle) against the model's 9.49 mJ
+/// (50.32 → 40.82 mJ), 8.2 % apart; without the hysteresis term the model says 10.38 mJ.
 #[test]
 fn a_task_at_the_natural_frequency_saves_what_two_masses_predict() {
     let (d, w) = HandCheck::omega();
@@ -213,17 +213,15 @@ fn a_task_at_the_natural_frequency_saves_what_two_masses_predict() {
     );
 }
 
-/// The hand check, choice part: the advisor must pick the resonant setting. Ignored: the
-/// controller does not yet track the task there within the advisor's tolerance (RMS error
-/// ≤ 10 % of the motion's RMS, 1.06 mrad). Measured: 3.9 mrad at L = 15 mm (29 mrad before
-/// the sine's two-mass feed-forward), 0.29 mrad at 5 mm; the rest is what the
-/// controller's model leaves out at the resonance, where no motor torque drives the motion
-/// and the losses decide the amplitude (Coulomb gear friction, beam hysteresis), and the
-/// slow position loop of soft settings (ω_c = 5.2 rad/s at 15 mm) that corrects neither at
-/// 36 rad/s (docs/designer-tools.md, "Known limit"). Run it with
-/// `cargo test -p vsa-cli --test advise -- --ignored` once the controller can.
+/// The hand check, choice part: the advisor must pick the resonant setting, which means
+/// that the controller tracks the task there within the advisor's tolerance (RMS error
+/// ≤ 10 % of the motion's RMS, 1.06 mrad). At the resonance no motor torque drives the
+/// motion and the losses decide the amplitude: it takes the feed-forward of the gear's
+/// Coulomb friction and of the beams' hysteresis band (docs/design.md §11, step 7), a hold
+/// integrator that leaves a moving reference alone (step 8) and the skipped start
+/// transient of the slow loop at soft settings. Measured: 0.69 mrad at L = 15 mm, 0.34 mrad
+/// at 5 mm (3.85 mrad at 15 mm without them).
 #[test]
-#[ignore = "needs a controller that tracks at the coupling resonance (see the docs)"]
 fn a_task_at_the_natural_frequency_picks_that_setting() {
     let v = HandCheck::run();
     assert!(

@@ -108,6 +108,15 @@ impl Setting {
         self.stiffness
     }
 
+    /// The hysteresis coefficient c = (6/5)·μ·R/L of §2.1 (τ = k·φ·(1 ± c·|φ|)), per rad.
+    #[must_use]
+    pub const fn hysteresis_coefficient(&self) -> Option<fixed::types::I64F64> {
+        match self.friction.to_i128(64, false) {
+            Some(b) => Some(fixed::types::I64F64::from_bits(b)),
+            None => None,
+        }
+    }
+
     /// The stress-limited torque capacity τ_cap(L).
     #[must_use]
     pub const fn torque_capacity(&self) -> Torque {

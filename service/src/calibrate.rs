@@ -245,8 +245,8 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         }
     }
 
-    /// Puts `cal` in force: the motor's resistance and back-EMF and the link inertia for
-    /// the controller, its pot error table for the supervisor, the sensor correction
+    /// Puts `cal` in force: the motor's resistance, back-EMF and gear friction and the link
+    /// inertia for the controller, its pot error table for the supervisor, the sensor correction
     /// (`correction`, else the one `cal` gives).
     pub(crate) fn apply_calibration(
         &mut self,
@@ -259,6 +259,8 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         config.motor.back_emf = fixed::types::I32F32::from_bits(crate::micro_to_q32(
             cal.wire.back_emf_uv_s_per_rad.into(),
         ));
+        config.motor.coulomb =
+            fixed::types::I32F32::from_bits(crate::micro_to_q32(cal.wire.gear_friction_unm.into()));
         config.link_inertia =
             Inertia::from_int(i32::try_from(cal.wire.link_inertia_kg_mm2).unwrap_or(i32::MAX));
         let correction = correction.unwrap_or_else(|| {

@@ -79,6 +79,10 @@ fn a_calibration_runs_from_disabled_and_its_result_drives_the_controller() {
         service::milli_to_q32(c.resistance_mohm.into())
     );
     assert_eq!(
+        m.coulomb.to_bits(),
+        service::micro_to_q32(c.gear_friction_unm.into())
+    );
+    assert_eq!(
         b.service.config().link_inertia.to_bits() >> 32,
         i64::from(c.link_inertia_kg_mm2)
     );

@@ -26,7 +26,8 @@
 //! A run holds [`SETTLE_TICKS`] (the load is taken up; `vsa advise` holds longer at soft
 //! settings, [`Motion::settle_ticks`]), starts the sine, skips the first
 //! second ([`SKIP_TICKS`]: one cycle at 1 Hz, three at 3 Hz, the start transient; with the
-//! load, later cycles agree with the counted ones to 4 digits) and averages the energies
+//! load, later cycles agree with the counted ones to 4 digits; `vsa advise` skips longer
+//! at soft settings, [`Motion::skip_ticks`]) and averages the energies
 //! over the next whole cycles (2 at 1 Hz, 6 at 3 Hz).
 //!
 //! # What is integrated (f64, per 1 ms tick)
@@ -103,10 +104,12 @@ pub struct Motion {
     /// Gravity arm m·g·l, N·m: the link hangs at the motion's centre (0 rad) and gravity
     /// pulls it back with −m·g·l·sin θ (`plant::harness::Scenario::gravity_nm`).
     pub gravity_nm: f64,
-    /// Whole cycles averaged after [`SKIP_TICKS`].
+    /// Whole cycles averaged after `skip_ticks`.
     pub cycles: u32,
     /// Ticks of hold before the sine starts (the controller takes up the load).
     pub settle_ticks: u32,
+    /// Ticks skipped after the sine starts (its start transient): [`SKIP_TICKS`] here.
+    pub skip_ticks: u32,
 }
 
 /// The four series: 1 Hz and 3 Hz, with and without the load.
@@ -119,6 +122,7 @@ pub const SERIES: [Motion; 4] = [
         gravity_nm: 0.0,
         cycles: 2,
         settle_ticks: SETTLE_TICKS,
+        skip_ticks: SKIP_TICKS,
     },
     Motion {
         key: "loaded_3hz",
@@ -128,6 +132,7 @@ pub const SERIES: [Motion; 4] = [
         gravity_nm: 0.0,
         cycles: 6,
         settle_ticks: SETTLE_TICKS,
+        skip_ticks: SKIP_TICKS,
     },
     Motion {
         key: "unloaded_1hz",
@@ -137,6 +142,7 @@ pub const SERIES: [Motion; 4] = [
         gravity_nm: 0.0,
         cycles: 2,
         settle_ticks: SETTLE_TICKS,
+        skip_ticks: SKIP_TICKS,
     },
     Motion {
         key: "unloaded_3hz",
@@ -146,6 +152,7 @@ pub const SERIES: [Motion; 4] = [
         gravity_nm: 0.0,
         cycles: 6,
         settle_ticks: SETTLE_TICKS,
+        skip_ticks: SKIP_TICKS,
     },
 ];
 
@@ -263,15 +270,15 @@ pub fn energy_of_commands(
     sc.load_nm = m.load_nm as f32;
     sc.gravity_nm = m.gravity_nm as f32;
     sc.settle_ticks = m.settle_ticks;
-    sc.run_ticks = SKIP_TICKS + window;
-    sc.rms_from_ticks = SKIP_TICKS;
+    sc.run_ticks = m.skip_ticks.saturating_add(window);
+    sc.rms_from_ticks = m.skip_ticks;
     let vs = f64::from(pc.motor.supply_voltage_v);
     let r = f64::from(pc.motor.resistance_ohm);
     let kt = f64::from(pc.motor.torque_constant_nm_per_a);
     let ke = f64::from(pc.motor.back_emf_v_s_per_rad);
     let dt = f64::from(plant::TICK_S);
     let full = f64::from(plant::DUTY_FULL_SCALE);
-    let from = m.settle_ticks + SKIP_TICKS;
+    let from = m.settle_ticks.saturating_add(m.skip_ticks);
     let mut e = CycleEnergy::default();
     let mut last_gear = 0.0f64;
     let (mut e_sum, mut e_sq, mut e_n) = (0.0f64, 0.0f64, 0.0f64);

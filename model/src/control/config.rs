@@ -33,6 +33,8 @@ pub struct MotorParams {
     pub rotor_inertia: Inertia,
     /// Viscous friction of the gear train at the output, N·m·s/rad, in [0, 10].
     pub viscous: I32F32,
+    /// Coulomb (dry) friction of the gear train at the output, N·m, in [0, 1].
+    pub coulomb: I32F32,
 }
 
 impl MotorParams {
@@ -45,6 +47,7 @@ impl MotorParams {
         back_emf: I32F32::lit("1.94"),
         rotor_inertia: Inertia::from_int(3200),
         viscous: I32F32::lit("0.001"),
+        coulomb: I32F32::lit("0.01"),
     };
 }
 

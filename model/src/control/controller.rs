@@ -5,8 +5,8 @@ use fixed::types::I32F32;
 
 use super::config::Config;
 use super::error::ControlError;
-use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Q16_ONE};
-use super::schedule::Schedule;
+use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Gain, Q16_ONE};
+use super::schedule::{Schedule, TICKS_PER_S};
 use super::sine_feedforward::FeedForward;
 use super::trajectory::{Command, Reference, Trajectory};
 use crate::design::Design;
@@ -135,6 +135,8 @@ pub struct Controller {
     /// Deflection feed-forward of the previous tick, rad Q16, and whether it is valid.
     defl_prev: i32,
     defl_valid: bool,
+    /// Its elastic part (the hysteresis band's state), rad Q16.
+    elastic_prev: i32,
     /// Gear angle estimate, rad Q32: the observer's gear velocity integrated, pulled
     /// towards θ_l + φ_ref at the rate ω_o (a complementary filter: the gear from the
     /// motor above ω_o, from the link encoder below), and whether it is set.
@@ -174,6 +176,7 @@ impl Controller {
             duty_prev: 0,
             defl_prev: 0,
             defl_valid: false,
+            elastic_prev: 0,
             theta_g: 0,
             theta_g_valid: false,
             w_bias: 0,
@@ -416,11 +419,33 @@ impl Controller {
             .fp_slope
             .apply(tau_ref)
             .clamp(-s.free_play_q16, s.free_play_q16);
-        let defl = s.inv_k.apply(tau_ref).saturating_add(side);
-        let u_defl = if self.defl_valid {
-            s.ff_defl.apply(defl.saturating_sub(self.defl_prev))
+        let phi0 = s.inv_k.apply(tau_ref);
+        let elastic = if self.defl_valid {
+            hysteresis_band(self.elastic_prev, phi0, s.hyst_c)
+        } else {
+            phi0
+        };
+        self.elastic_prev = elastic;
+        let defl = elastic.saturating_add(side);
+        let d_defl = if self.defl_valid {
+            defl.saturating_sub(self.defl_prev)
         } else {
             0
+        };
+        let u_defl = s.ff_defl.apply(d_defl);
+        // The gear's Coulomb friction ahead of the gear velocity the reference asks for,
+        // ṙ + Δφ_ref/dt, ramped in near standstill. Only for a moving reference and a
+        // loaded link: at rest the integrator holds the friction, and a floating link's
+        // gear loop settled fewer runs with it (design §11, step 7).
+        let u_coulomb = if floating || (r.velocity_q16 == 0 && r.acceleration_q16 == 0) {
+            0
+        } else {
+            let w_gear_ref = r
+                .velocity_q16
+                .saturating_add(d_defl.saturating_mul(TICKS_PER_S));
+            s.coulomb_ramp
+                .apply(w_gear_ref)
+                .clamp(-s.coulomb_q16, s.coulomb_q16)
         };
         self.defl_prev = defl;
         self.defl_valid = true;
@@ -428,6 +453,7 @@ impl Controller {
         // --- PID (derivative on the filtered link velocity) ---
         let u = u_ff
             .saturating_add(u_defl)
+            .saturating_add(u_coulomb)
             .saturating_add(if resting {
                 0
             } else {
@@ -504,7 +530,12 @@ impl Controller {
             let dead_band = s
                 .w_deadband_q16
                 .saturating_add(s.w_bias_per_amp.apply(current.saturating_abs()));
-            if slip.saturating_abs() <= dead_band {
+            // Only for a stationary reference: a moving one asks the gear for ṙ plus the
+            // deflection's rate (−ṙ at a sine's coupling resonance), and the slip
+            // integrated whenever the link crossed the reference's count kicked the hold
+            // off by several mrad (design §11, step 8).
+            if slip.saturating_abs() <= dead_band || r.velocity_q16 != 0 || r.acceleration_q16 != 0
+            {
                 0
             } else {
                 -s.kp_dt.apply_wide(slip)
@@ -538,6 +569,19 @@ impl Controller {
             current: I32F32::from_bits(q16_to_q32(current)),
         }
     }
+}
+
+/// The elastic deflection that carries the torque k·φ₀ through the beams' friction
+/// hysteresis (design §2.1, τ = k·φ·(1 ± c·|φ|)), rad Q16: to first order in c·|φ₀| the
+/// loading branch needs φ₀ − c·φ₀·|φ₀| and the unloading one φ₀ + c·φ₀·|φ₀|, so the
+/// deflections that carry it form the band φ₀ ± c·φ₀². The beams stick inside it
+/// (`prev` stays) and move only when an edge pushes them (a play operator).
+fn hysteresis_band(prev: i32, phi0: i32, hyst_c: Gain) -> i32 {
+    // c·φ₀ first (Q16, 0.4 % at the smallest loads that matter), then ·|φ₀| rounded: φ₀²
+    // in Q16 alone would lose the band below 4 mrad.
+    let c_phi = i64::from(hyst_c.apply(phi0).saturating_abs());
+    let h = sat_i32((c_phi * i64::from(phi0.saturating_abs()) + (1 << 15)) >> 16);
+    prev.clamp(phi0.saturating_sub(h), phi0.saturating_add(h))
 }
 
 #[cfg(test)]
@@ -624,7 +668,7 @@ mod tests {
         let mut a = ctl(3);
         let mut b = ctl(3);
         let good = *a.config();
-        let mut bads = [good; 8];
+        let mut bads = [good; 9];
         bads[0].link_inertia = Inertia::ZERO;
         bads[1].clutch = ClutchSetting::Length(Length::from_int(9));
         bads[2].clutch =
@@ -644,6 +688,7 @@ mod tests {
                 kd: I32F32::ZERO,
             }),
         };
+        bads[8].motor.coulomb = I32F32::from_num(2);
         let want = [
             ControlError::InertiaOutOfRange,
             ControlError::ClutchOutOfRange,
@@ -653,6 +698,7 @@ mod tests {
             ControlError::MotorOutOfRange,
             ControlError::GainOutOfRange,
             ControlError::GainOutOfRange,
+            ControlError::MotorOutOfRange,
         ];
         a.command(Command::Move {
             target: Angle::from_int(1),
@@ -778,5 +824,51 @@ mod tests {
             last = Some(o.duty);
         }
         assert_eq!(last, Some(0));
+    }
+
+    /// The band against the §2.1 branches solved exactly in f64: the loading branch
+    /// k·φ·(1 + c·|φ|) = τ and the unloading one k·φ·(1 − c·|φ|) = τ have the roots
+    /// φ = (√(1 ± 4·c·|φ₀|) ∓ 1)/(2c)·sign(φ₀) (φ₀ = τ/k), which the band's edges match to
+    /// second order; a deflection inside the band stays, one outside moves to the edge.
+    #[test]
+    fn hysteresis_band_holds_the_branches_roots() {
+        let q16 = |x: f64| (x * 65_536.0).round() as i32;
+        let f = |x: i32| f64::from(x) / 65_536.0;
+        for c in [0.25, 1.248, 3.0] {
+            let gain = Gain::new(fixed::types::I64F64::from_num(c)).unwrap();
+            // c·|φ₀| ≤ 0.05 covers every setting within its capacity (c·φ_cap ≤ 0.02 for the paper preset).
+            for phi0 in [-0.1, -0.05, -0.004, 0.0, 0.003, 0.04, 0.12] {
+                let a: f64 = phi0;
+                if c * a.abs() > 0.05 {
+                    continue;
+                }
+                let loading = a.signum() * ((1.0 + 4.0 * c * a.abs()).sqrt() - 1.0) / (2.0 * c);
+                let unloading = a.signum() * (1.0 - (1.0 - 4.0 * c * a.abs()).sqrt()) / (2.0 * c);
+                let (lo, hi) = (loading.min(unloading), loading.max(unloading));
+                // Second-order agreement: the neglected terms are 2·c²·|φ₀|³ + 5·c³·φ₀⁴ + ….
+                let tol = 3.0 * c * c * a.abs().powi(3) + 4.0 / 65_536.0;
+                let below = f(hysteresis_band(q16(-1.0), q16(a), gain));
+                let above = f(hysteresis_band(q16(1.0), q16(a), gain));
+                assert!((below - lo).abs() <= tol, "c {c} φ₀ {a}: {below} vs {lo}");
+                assert!((above - hi).abs() <= tol, "c {c} φ₀ {a}: {above} vs {hi}");
+                let mid = q16((lo + hi) / 2.0);
+                assert_eq!(hysteresis_band(mid, q16(a), gain), mid);
+            }
+        }
+    }
+
+    /// The Coulomb duty against (1000/V_s)·(R/k_t)·τ_c in f64, and none without friction.
+    #[test]
+    fn coulomb_feed_forward_is_the_friction_duty() {
+        let d = Design::paper();
+        let mut cfg = Config::paper(Length::from_int(3));
+        let s = Schedule::new(&d, &cfg).unwrap();
+        let want = 1000.0 / 12.0 * 8.0 / 1.0 * 0.01;
+        assert!((f64::from(s.coulomb_q16) / 65_536.0 - want).abs() < 1e-4);
+        let ramp = f64::from(s.coulomb_ramp.apply(1 << 16)) / 65_536.0;
+        assert!((ramp - want / 0.1).abs() < 1e-3, "{ramp}");
+        cfg.motor.coulomb = I32F32::ZERO;
+        let s = Schedule::new(&d, &cfg).unwrap();
+        assert_eq!((s.coulomb_q16, s.coulomb_ramp.apply(1 << 16)), (0, 0));
     }
 }

@@ -32,13 +32,11 @@ use core::fmt;
 use fixed::types::{I32F32, I64F64};
 
 use super::gain::{q32_to_q16, Gain};
-use super::schedule::Schedule;
+use super::schedule::{Schedule, TICKS_PER_S};
 use super::trajectory::{Command, MAX_ANGLE_RAD, MAX_MOVE_MS};
 use crate::sensors::ENCODER_HALF_COUNT_Q32;
 use crate::units::{Angle, Inertia, Stiffness, Torque};
 
-/// Control ticks per second (the 1 kHz loop): Δt = 1/`TICKS_PER_S` in β.
-const TICKS_PER_S: i32 = 1000;
 /// The reference's lag is at least `LAG_BANDWIDTH_RATIO`/ω_c (ω_c the position loop's
 /// bandwidth): faster virtual dynamics than the loop can follow make the torque estimate's
 /// free-play transients drive the reference into a limit cycle (docs/design.md §11,

@@ -65,6 +65,10 @@ pub const REST_TORQUE_NM: I32F32 = I32F32::lit("0.2");
 /// the free play and the position loop acts on the gear estimate.
 pub const FLOAT_LOAD_NM: I32F32 = I32F32::lit("0.05");
 
+/// The gear velocity reference, rad/s, at which the gear's Coulomb friction is fed
+/// forward in full (in proportion below: no sign flips at standstill).
+pub const COULOMB_RAMP_RAD_S: I32F32 = I32F32::lit("0.1");
+
 /// The per-tick constants of one configuration (all divisions done).
 ///
 /// Signal formats: Q16 `i32` (see [`super::gain`]); duty in ‰, angles in rad, velocities
@@ -132,6 +136,13 @@ pub struct Schedule {
     pub(crate) j_link: Gain,
     /// 1/k, rad per N·m.
     pub(crate) inv_k: Gain,
+    /// Duty of the gear's Coulomb friction τ_c, (1000/V_s)·(R/k_t)·τ_c, ‰ Q16.
+    pub(crate) coulomb_q16: i32,
+    /// That duty per rad/s of the gear velocity reference (full at `COULOMB_RAMP_RAD_S`).
+    pub(crate) coulomb_ramp: Gain,
+    /// The hysteresis coefficient c (§2.1), per rad: half the band of deflections that
+    /// carry one torque τ is c·(τ/k)².
+    pub(crate) hyst_c: Gain,
     /// k, N·m per rad.
     pub(crate) k: Gain,
     /// φ_b, rad, Q16.
@@ -180,7 +191,7 @@ pub struct Schedule {
 }
 
 /// Control ticks per second (the loop runs at 1 kHz).
-const TICKS_PER_S: i128 = 1000;
+pub(crate) const TICKS_PER_S: i32 = 1000;
 
 /// The motor, gear train and link referred to the gearbox output, SI, I64F64.
 struct Drive {
@@ -341,7 +352,7 @@ impl Schedule {
             None => pole_placement(&p, w)?,
         };
         let ticks_per_s = I64F64::from_num(TICKS_PER_S);
-        let dt = I64F64::ONE / TICKS_PER_S;
+        let dt = I64F64::ONE / i128::from(TICKS_PER_S);
         let tau_f = div(I64F64::ONE, mul(I64F64::from_num(DERIV_FILTER_N), w)?)?;
         let alpha = div(dt, add(tau_f, dt)?)?;
 
@@ -355,6 +366,7 @@ impl Schedule {
         let duty_per_amp = to_gain(mul(duty_per_volt, r)?)?;
         let ff_vel = mul(duty_per_volt, add(ke, div(mul(r, bv)?, kt)?)?)?;
         let ff_acc = div(mul(mul(duty_per_volt, r)?, p.j)?, kt)?;
+        let coulomb_duty = div(mul(mul(duty_per_volt, r)?, wide(cfg.motor.coulomb))?, kt)?;
         let dash = DashGains {
             accel_per_duty: to_gain(div(wide(dash::CURRENT_FRACTION), ff_acc)?)?,
             top_per_duty: to_gain(div(wide(dash::VOLTAGE_FRACTION), ff_vel)?)?,
@@ -420,6 +432,13 @@ impl Schedule {
             ff_defl: to_gain(mul(mul(duty_per_volt, ke)?, ticks_per_s)?)?,
             j_link: to_gain(p.j_link)?,
             inv_k: to_gain(div(I64F64::ONE, k)?)?,
+            coulomb_q16: to_q16(coulomb_duty)?,
+            coulomb_ramp: to_gain(div(coulomb_duty, wide(COULOMB_RAMP_RAD_S))?)?,
+            hyst_c: to_gain(
+                setting
+                    .hysteresis_coefficient()
+                    .ok_or(ControlError::Overflow)?,
+            )?,
             k: to_gain(k)?,
             free_play_q16: to_q16(free_play)?,
             fp_slope: to_gain(div(free_play, wide(FREE_PLAY_SWITCH_NM))?)?,

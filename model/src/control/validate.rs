@@ -49,7 +49,8 @@ pub(crate) fn validate(design: &Design, cfg: &Config) -> Result<Setting, Control
             I32F32::from_num(100),
         )
         && in_range(m.rotor_inertia.get(), one, I32F32::from_num(1_000_000))
-        && in_range(m.viscous, I32F32::ZERO, I32F32::from_num(10)))
+        && in_range(m.viscous, I32F32::ZERO, I32F32::from_num(10))
+        && in_range(m.coulomb, I32F32::ZERO, I32F32::ONE))
     {
         return Err(E::MotorOutOfRange);
     }
