@@ -232,9 +232,8 @@ impl FloatSchedule {
                 .setting()
                 .hysteresis_coefficient()
                 .map_or(0.0, |c| c.to_num::<f32>()),
-            coulomb: dpv * r * i32f32(m.coulomb.to_bits()) / kt,
-            coulomb_ramp: dpv * r * i32f32(m.coulomb.to_bits())
-                / kt
+            coulomb: (dpv * r * i32f32(m.coulomb.to_bits()) / kt).min(max_duty),
+            coulomb_ramp: (dpv * r * i32f32(m.coulomb.to_bits()) / kt).min(max_duty)
                 / i32f32(COULOMB_RAMP_RAD_S.to_bits()),
             k,
             free_play,

@@ -5,7 +5,7 @@ use fixed::types::I32F32;
 
 use super::config::Config;
 use super::error::ControlError;
-use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Gain, Q16_ONE};
+use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Q16_ONE};
 use super::schedule::{Schedule, TICKS_PER_S};
 use super::sine_feedforward::FeedForward;
 use super::trajectory::{Command, Reference, Trajectory};
@@ -421,7 +421,7 @@ impl Controller {
             .clamp(-s.free_play_q16, s.free_play_q16);
         let phi0 = s.inv_k.apply(tau_ref);
         let elastic = if self.defl_valid {
-            hysteresis_band(self.elastic_prev, phi0, s.hyst_c)
+            hysteresis_band(self.elastic_prev, phi0, s.hyst_c_q16)
         } else {
             phi0
         };
@@ -442,10 +442,10 @@ impl Controller {
         } else {
             let w_gear_ref = r
                 .velocity_q16
-                .saturating_add(d_defl.saturating_mul(TICKS_PER_S));
-            s.coulomb_ramp
-                .apply(w_gear_ref)
-                .clamp(-s.coulomb_q16, s.coulomb_q16)
+                .saturating_add(d_defl.saturating_mul(TICKS_PER_S))
+                .clamp(-s.coulomb_ramp_q16, s.coulomb_ramp_q16);
+            // |w| ≤ 2¹⁶·0.1 and the gain ≤ 2³¹: the product fits, the result ≤ the duty.
+            ((i64::from(w_gear_ref) * i64::from(s.coulomb_per_w_q16)) >> 16) as i32
         };
         self.defl_prev = defl;
         self.defl_valid = true;
@@ -575,13 +575,16 @@ impl Controller {
 /// hysteresis (design §2.1, τ = k·φ·(1 ± c·|φ|)), rad Q16: to first order in c·|φ₀| the
 /// loading branch needs φ₀ − c·φ₀·|φ₀| and the unloading one φ₀ + c·φ₀·|φ₀|, so the
 /// deflections that carry it form the band φ₀ ± c·φ₀². The beams stick inside it
-/// (`prev` stays) and move only when an edge pushes them (a play operator).
-fn hysteresis_band(prev: i32, phi0: i32, hyst_c: Gain) -> i32 {
-    // c·φ₀ first (Q16, 0.4 % at the smallest loads that matter), then ·|φ₀| rounded: φ₀²
-    // in Q16 alone would lose the band below 4 mrad.
-    let c_phi = i64::from(hyst_c.apply(phi0).saturating_abs());
-    let h = sat_i32((c_phi * i64::from(phi0.saturating_abs()) + (1 << 15)) >> 16);
-    prev.clamp(phi0.saturating_sub(h), phi0.saturating_add(h))
+/// (`prev` stays) and move only when an edge pushes them (a play operator). `c_q16` is c
+/// in Q16 (per rad), below 2³¹.
+fn hysteresis_band(prev: i32, phi0: i32, c_q16: i32) -> i32 {
+    // |φ₀| ≤ 1 rad (2¹⁶; the beams break far below): c·|φ₀| < 2³¹ and h < 2³¹ in Q16,
+    // two multiplies with constant shifts.
+    let a = phi0.unsigned_abs().min(1 << 16) as i32;
+    let c_phi = ((i64::from(c_q16) * i64::from(a)) >> 16) as i32;
+    let h = ((i64::from(c_phi) * i64::from(a) + (1 << 15)) >> 16) as i32;
+    // max/min rather than clamp: h ≥ 0 orders the bounds, and clamp's check costs a branch.
+    prev.max(phi0.saturating_sub(h)).min(phi0.saturating_add(h))
 }
 
 #[cfg(test)]
@@ -835,7 +838,7 @@ mod tests {
         let q16 = |x: f64| (x * 65_536.0).round() as i32;
         let f = |x: i32| f64::from(x) / 65_536.0;
         for c in [0.25, 1.248, 3.0] {
-            let gain = Gain::new(fixed::types::I64F64::from_num(c)).unwrap();
+            let gain = q16(c);
             // c·|φ₀| ≤ 0.05 covers every setting within its capacity (c·φ_cap ≤ 0.02 for the paper preset).
             for phi0 in [-0.1, -0.05, -0.004, 0.0, 0.003, 0.04, 0.12] {
                 let a: f64 = phi0;
@@ -864,11 +867,11 @@ mod tests {
         let mut cfg = Config::paper(Length::from_int(3));
         let s = Schedule::new(&d, &cfg).unwrap();
         let want = 1000.0 / 12.0 * 8.0 / 1.0 * 0.01;
-        assert!((f64::from(s.coulomb_q16) / 65_536.0 - want).abs() < 1e-4);
-        let ramp = f64::from(s.coulomb_ramp.apply(1 << 16)) / 65_536.0;
-        assert!((ramp - want / 0.1).abs() < 1e-3, "{ramp}");
+        let full = f64::from(s.coulomb_ramp_q16) * f64::from(s.coulomb_per_w_q16) / 2f64.powi(32);
+        assert!((full - want).abs() < 1e-3, "{full} ‰");
+        assert!((f64::from(s.coulomb_ramp_q16) / 65_536.0 - 0.1).abs() < 2e-5);
         cfg.motor.coulomb = I32F32::ZERO;
         let s = Schedule::new(&d, &cfg).unwrap();
-        assert_eq!((s.coulomb_q16, s.coulomb_ramp.apply(1 << 16)), (0, 0));
+        assert_eq!(s.coulomb_per_w_q16, 0);
     }
 }

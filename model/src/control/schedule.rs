@@ -136,13 +136,14 @@ pub struct Schedule {
     pub(crate) j_link: Gain,
     /// 1/k, rad per N·m.
     pub(crate) inv_k: Gain,
-    /// Duty of the gear's Coulomb friction τ_c, (1000/V_s)·(R/k_t)·τ_c, ‰ Q16.
-    pub(crate) coulomb_q16: i32,
-    /// That duty per rad/s of the gear velocity reference (full at `COULOMB_RAMP_RAD_S`).
-    pub(crate) coulomb_ramp: Gain,
-    /// The hysteresis coefficient c (§2.1), per rad: half the band of deflections that
-    /// carry one torque τ is c·(τ/k)².
-    pub(crate) hyst_c: Gain,
+    /// `COULOMB_RAMP_RAD_S`, rad/s Q16.
+    pub(crate) coulomb_ramp_q16: i32,
+    /// The duty of the gear's Coulomb friction τ_c, (1000/V_s)·(R/k_t)·τ_c (at most the
+    /// duty limit), per rad/s of the gear velocity reference up to the ramp, ‰·s/rad Q16.
+    pub(crate) coulomb_per_w_q16: i32,
+    /// The hysteresis coefficient c (§2.1), per rad, Q16: half the band of deflections
+    /// that carry one torque τ is c·(τ/k)².
+    pub(crate) hyst_c_q16: i32,
     /// k, N·m per rad.
     pub(crate) k: Gain,
     /// φ_b, rad, Q16.
@@ -366,7 +367,8 @@ impl Schedule {
         let duty_per_amp = to_gain(mul(duty_per_volt, r)?)?;
         let ff_vel = mul(duty_per_volt, add(ke, div(mul(r, bv)?, kt)?)?)?;
         let ff_acc = div(mul(mul(duty_per_volt, r)?, p.j)?, kt)?;
-        let coulomb_duty = div(mul(mul(duty_per_volt, r)?, wide(cfg.motor.coulomb))?, kt)?;
+        let coulomb_duty = div(mul(mul(duty_per_volt, r)?, wide(cfg.motor.coulomb))?, kt)?
+            .min(I64F64::from_num(lim.max_duty));
         let dash = DashGains {
             accel_per_duty: to_gain(div(wide(dash::CURRENT_FRACTION), ff_acc)?)?,
             top_per_duty: to_gain(div(wide(dash::VOLTAGE_FRACTION), ff_vel)?)?,
@@ -432,9 +434,9 @@ impl Schedule {
             ff_defl: to_gain(mul(mul(duty_per_volt, ke)?, ticks_per_s)?)?,
             j_link: to_gain(p.j_link)?,
             inv_k: to_gain(div(I64F64::ONE, k)?)?,
-            coulomb_q16: to_q16(coulomb_duty)?,
-            coulomb_ramp: to_gain(div(coulomb_duty, wide(COULOMB_RAMP_RAD_S))?)?,
-            hyst_c: to_gain(
+            coulomb_ramp_q16: to_q16(wide(COULOMB_RAMP_RAD_S))?,
+            coulomb_per_w_q16: to_q16(div(coulomb_duty, wide(COULOMB_RAMP_RAD_S))?)?,
+            hyst_c_q16: to_q16(
                 setting
                     .hysteresis_coefficient()
                     .ok_or(ControlError::Overflow)?,
