@@ -762,11 +762,12 @@ impl FloatController {
         let e_g = r.position + self.defl_prev - self.theta_g;
         let e_p = if floating { e_g } else { e };
         // Rest without load: the gear stays where it is.
+        let stationary = r.velocity == 0.0 && r.acceleration == 0.0;
+        let near = libm::fabsf(e_raw) <= s.rest_zone;
         let calm = libm::fabsf(self.integ) < s.rest_load
             && libm::fabsf(tau) < s.rest_torque
-            && r.velocity == 0.0
-            && r.acceleration == 0.0
-            && libm::fabsf(e_raw) <= s.rest_zone;
+            && stationary
+            && near;
         self.rest_ticks = if calm {
             self.rest_ticks.saturating_add(1)
         } else {
@@ -796,7 +797,7 @@ impl FloatController {
             0.0
         };
         let u_defl = s.ff_defl * d_defl;
-        let u_coulomb = if floating || (r.velocity == 0.0 && r.acceleration == 0.0) {
+        let u_coulomb = if floating || stationary {
             0.0
         } else {
             (s.coulomb_ramp * (r.velocity + d_defl * 1000.0)).clamp(-s.coulomb, s.coulomb)
@@ -805,8 +806,14 @@ impl FloatController {
         self.defl_valid = true;
 
         // --- PID ---
-        let u_p = if resting { 0.0 } else { s.kp * e_p };
-        let u = u_ff + u_defl + u_coulomb + u_p + u_i + s.kd * (self.w_ref - self.w_fb);
+        // The floating gear loop at ω_c/2 near the target or while the reference moves.
+        let (soft_p, soft_d, soft_i) = if floating && (near || !stationary) {
+            (0.25, 0.5, 0.125)
+        } else {
+            (1.0, 1.0, 1.0)
+        };
+        let u_p = if resting { 0.0 } else { s.kp * soft_p * e_p };
+        let u = u_ff + u_defl + u_coulomb + u_p + u_i + s.kd * soft_d * (self.w_ref - self.w_fb);
 
         // --- limits ---
         let emf = s.duty_per_w * w_gear;
@@ -856,15 +863,14 @@ impl FloatController {
         let inc = if in_count || resting {
             let slip = w_gear - r.velocity;
             if libm::fabsf(slip) <= s.w_deadband + s.w_bias_per_amp * libm::fabsf(current)
-                || r.velocity != 0.0
-                || r.acceleration != 0.0
+                || !stationary
             {
                 0.0
             } else {
                 -s.kp_dt * slip
             }
         } else if libm::fabsf(e_p) < s.int_band {
-            s.ki_dt * e_p
+            s.ki_dt * soft_i * e_p
         } else {
             0.0
         };

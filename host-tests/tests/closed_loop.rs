@@ -105,9 +105,10 @@ fn load_step_while_holding_is_rejected() {
 /// bound leaves a factor of 2.5.
 const SINE_RMS_MAX_RAD: f64 = 2.5e-3;
 /// The same without load: the link torque J·r̈ (±8 mN·m) reverses every half period and
-/// the link rattles in the free play (±5.1e-3 rad); measured 3.5e-3 … 1.2e-2 rad (worst
-/// at L = 5 mm); the bound leaves a factor of 2.
-const SINE_RMS_MAX_NO_LOAD_RAD: f64 = 2.5e-2;
+/// the link floats in the free play (±5.1e-3 rad); measured 3.1e-3 … 3.7e-3 rad (worst at
+/// L = 5 mm; 3.5e-3 … 1.2e-2 while the floating gear loop ran at the full ω_c); the bound
+/// leaves a factor of 2.
+const SINE_RMS_MAX_NO_LOAD_RAD: f64 = 7.5e-3;
 
 #[test]
 fn sine_02_rad_1_hz_tracking() {

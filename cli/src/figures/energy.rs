@@ -18,10 +18,11 @@
 //!   on one side of the free play (the link's own inertial torque J_l·A·ω² is 0.008 N·m at
 //!   1 Hz, 0.071 N·m at 3 Hz). With 0.1 and 0.15 N·m the rattle below still appeared at
 //!   1 Hz at some L (3–5.5 mm and 4–4.5 mm); with 0.2 N·m at none;
-//! * without load. The coupling torque then changes sign twice a cycle and the link
-//!   rattles in the free play ±φ_b = ±5.1 mrad (the controller's known no-load weakness,
-//!   see README): a limit cycle of roughly 30 ms period (seen at L = 1 and 4 mm) with up
-//!   to ±1 A of motor current.
+//! * without load. The coupling torque then changes sign twice a cycle and the link floats
+//!   in the free play ±φ_b = ±5.1 mrad; a controller that throws it from wall to wall pays
+//!   for every bounce (design §11, step 8: the floating gear loop runs at ω_c/2 near the
+//!   target and while the reference moves; at the full ω_c the 1 Hz sine drew up to 2.7×
+//!   the rigid-body estimate, with an 11 Hz bounce at L = 4 mm).
 //!
 //! A run holds [`SETTLE_TICKS`] (the load is taken up; `vsa advise` holds longer at soft
 //! settings, [`Motion::settle_ticks`]), starts the sine, skips the first
@@ -65,9 +66,8 @@
 //! joint to it is 0.04 N·m/rad at 1 Hz and 0.36 N·m/rad at 3 Hz, 40–350 times softer than
 //! the softest setting (14 N·m/rad). The soft end saves what theory predicts: the gear
 //! swings (1 − J_l·ω²/k) of the link's amplitude, 2.5 % less at 3 Hz and L = 8 mm, worth
-//! 1.5 % of the energy. Without load the energy is dominated by the free-play rattle:
-//! at 1 Hz 4–126 times the rigid-body estimate, at 3 Hz 0.9–5.7 times, peaking at
-//! L = 4–4.5 mm. That is the controller's no-load behaviour, not the beams' physics.
+//! 1.5 % of the energy. Without load the energy is the rigid body's: 0.98–1.00 times the
+//! estimate at 1 Hz, 0.95–1.03 at 3 Hz (`cli/tests/figures.rs` holds it within 2×).
 
 use fixed::types::I32F32;
 use model::control::{Command, Config, Schedule};
@@ -413,7 +413,7 @@ pub fn energy_per_cycle_figure(d: &Design) -> Result<(Figure, Csv), String> {
             ),
             panel(
                 [2, 3],
-                "no load: the link rattles in the free play (log scale)".into(),
+                "no load: the link floats in the free play (log scale)".into(),
                 true,
             ),
         ],

@@ -375,11 +375,12 @@ impl Controller {
         // gear that chases the link in the free play throws it from wall to wall, a still
         // one only takes energy out of it at each contact. A load that turns up makes the
         // gear creep, the hold integrates it and the integrator leaves the band.
+        let stationary = r.velocity_q16 == 0 && r.acceleration_q16 == 0;
+        let near = q32_to_q16(e_q32).saturating_abs() <= s.rest_zone_q16;
         let calm = q32_to_q16(self.integ).saturating_abs() < s.rest_load_q16
             && tau.saturating_abs() < s.rest_torque_q16
-            && r.velocity_q16 == 0
-            && r.acceleration_q16 == 0
-            && q32_to_q16(e_q32).saturating_abs() <= s.rest_zone_q16;
+            && stationary
+            && near;
         // The conditions must hold for `REST_TICKS` in a row: a loaded link passes through
         // them for a few ticks at the end of a raw step (the integrator unwinds).
         self.rest_ticks = if calm {
@@ -437,7 +438,7 @@ impl Controller {
         // ṙ + Δφ_ref/dt, ramped in near standstill. Only for a moving reference and a
         // loaded link: at rest the integrator holds the friction, and a floating link's
         // gear loop settled fewer runs with it (design §11, step 7).
-        let u_coulomb = if floating || (r.velocity_q16 == 0 && r.acceleration_q16 == 0) {
+        let u_coulomb = if floating || stationary {
             0
         } else {
             let w_gear_ref = r
@@ -450,6 +451,10 @@ impl Controller {
         self.defl_prev = defl;
         self.defl_valid = true;
 
+        // A floating link near its target or following a moving reference: the gear loop at
+        // ω_c/2 (K_p/4, K_i/8, K_d/2), so that the gear meets the link's bounces in the
+        // free play softly instead of throwing it back (design §11, step 8).
+        let soft = u32::from(floating && (near || !stationary));
         // --- PID (derivative on the filtered link velocity) ---
         let u = u_ff
             .saturating_add(u_defl)
@@ -457,10 +462,10 @@ impl Controller {
             .saturating_add(if resting {
                 0
             } else {
-                s.kp.apply(if floating { e_g } else { e })
+                s.kp.apply(if floating { e_g >> (2 * soft) } else { e })
             })
             .saturating_add(u_i)
-            .saturating_add(s.kd.apply(self.w_ref.saturating_sub(self.w_fb)));
+            .saturating_add(s.kd.apply(self.w_ref.saturating_sub(self.w_fb) >> soft));
 
         // --- limits: current window about the back-EMF, duty limit ---
         let emf = s.duty_per_w.apply(w_gear);
@@ -534,8 +539,7 @@ impl Controller {
             // deflection's rate (−ṙ at a sine's coupling resonance), and the slip
             // integrated whenever the link crossed the reference's count kicked the hold
             // off by several mrad (design §11, step 8).
-            if slip.saturating_abs() <= dead_band || r.velocity_q16 != 0 || r.acceleration_q16 != 0
-            {
+            if slip.saturating_abs() <= dead_band || !stationary {
                 0
             } else {
                 -s.kp_dt.apply_wide(slip)
@@ -547,7 +551,7 @@ impl Controller {
                 0
             }
         } else if e_g.saturating_abs() < s.int_band_q16 {
-            s.ki_dt.apply_wide(e_g)
+            s.ki_dt.apply_wide(e_g >> (3 * soft))
         } else {
             0 // integral separation: far from the target the P term saturates anyway
         };
