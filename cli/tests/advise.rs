@@ -187,7 +187,7 @@ impl HandCheck {
 /// stiffest setting). The gear's Coulomb friction, which the model leaves out, costs about
 /// the same at both settings (the gear swings about as far) and cancels.
 ///
-/// Measured: 8.71 mJ saved (51.96 → 43.25 mJ per cycle) against the model's 9.49 mJ
+/// Measured: 8.71 mJ saved (51.95 → 43.24 mJ per cycle) against the model's 9.49 mJ
 /// (50.32 → 40.82 mJ), 8.2 % apart; without the hysteresis term the model says 10.38 mJ.
 #[test]
 fn a_task_at_the_natural_frequency_saves_what_two_masses_predict() {
