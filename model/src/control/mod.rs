@@ -14,13 +14,15 @@
 //! 5. error e = r − θ_l, zero while r lies in the measured encoder count;
 //! 6. feed-forward of the rigid inverse model (the two-mass inverse for a sine,
 //!    [`sine_feedforward`]), plus the free-play and compliance
-//!    compensation (a dead-zone inverse on the gear side);
+//!    compensation (a dead-zone inverse on the gear side, the beams' hysteresis band) and,
+//!    for a moving reference and a loaded link, the gear's Coulomb friction;
 //! 7. PID with the derivative on the filtered gear velocity; integral separation, and a
-//!    gear hold inside the target count (dead band: the observer's bias bound for a
-//!    current-sense offset and a warm motor's resistance). While the link floats in the
-//!    free play (little load held), P and I act on the gear's error against a gear-angle
-//!    estimate (the observer integrated, pulled towards the link below ω_c/3), so that
-//!    the link's rattle in the gap does not drive the motor;
+//!    gear hold inside the target count of a stationary reference (dead band: the
+//!    observer's bias bound for a current-sense offset and a warm motor's resistance).
+//!    While the link floats in the free play (little load held), P and I act on the gear's
+//!    error against a gear-angle estimate (the observer integrated, pulled towards the
+//!    link below ω_c/3), so that the link's rattle in the gap does not drive the motor,
+//!    and near the target or in motion the loop runs at ω_c/2;
 //! 8. braking governor for stationary references (ω_g² > 2·a_b·|e|);
 //! 9. clamps: current window about the back-EMF, beam-derived torque limit, duty limit,
 //!    with anti-windup.
