@@ -198,6 +198,7 @@ impl FloatSchedule {
         let i_lim = i32f32(i_lim.to_bits());
         let free_play = i32f32(sched.free_play().to_bits());
         let max_duty = f32::from(config.limits.max_duty);
+        let coulomb = (i32f32(m.coulomb.to_bits()) / c * dpv).min(max_duty);
         FloatSchedule {
             kp,
             ki_dt: ki * DT,
@@ -232,9 +233,8 @@ impl FloatSchedule {
                 .setting()
                 .hysteresis_coefficient()
                 .map_or(0.0, |c| c.to_num::<f32>()),
-            coulomb: (dpv * r * i32f32(m.coulomb.to_bits()) / kt).min(max_duty),
-            coulomb_ramp: (dpv * r * i32f32(m.coulomb.to_bits()) / kt).min(max_duty)
-                / i32f32(COULOMB_RAMP_RAD_S.to_bits()),
+            coulomb,
+            coulomb_ramp: coulomb / i32f32(COULOMB_RAMP_RAD_S.to_bits()),
             k,
             free_play,
             fp_slope: free_play / i32f32(FREE_PLAY_SWITCH_NM.to_bits()),

@@ -367,8 +367,12 @@ impl Schedule {
         let duty_per_amp = to_gain(mul(duty_per_volt, r)?)?;
         let ff_vel = mul(duty_per_volt, add(ke, div(mul(r, bv)?, kt)?)?)?;
         let ff_acc = div(mul(mul(duty_per_volt, r)?, p.j)?, kt)?;
-        let coulomb_duty = div(mul(mul(duty_per_volt, r)?, wide(cfg.motor.coulomb))?, kt)?
-            .min(I64F64::from_num(lim.max_duty));
+        // τ_c → duty as for the loads below: ÷ (k_t/R), × 1000/V_s.
+        let coulomb_duty = mul(
+            div(wide(cfg.motor.coulomb), p.torque_per_volt)?,
+            duty_per_volt,
+        )?
+        .min(I64F64::from_num(lim.max_duty));
         let dash = DashGains {
             accel_per_duty: to_gain(div(wide(dash::CURRENT_FRACTION), ff_acc)?)?,
             top_per_duty: to_gain(div(wide(dash::VOLTAGE_FRACTION), ff_vel)?)?,
