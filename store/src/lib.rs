@@ -92,8 +92,10 @@
 //!   applied, and a factory reset (which erases what it cannot write over) recovers it.
 //! * The tests cut the power after every word write and in every erase of a save, of a
 //!   reclaiming save, of a factory reset and of a fault write, and
-//!   run random sequences of saves, cuts, resets and faults (`tests/power_fail.rs`); 1 000
-//!   saves wear both pages evenly (`tests/wear.rs`).
+//!   run random sequences of saves, cuts, resets and faults (`tests/power_fail.rs`); the
+//!   same histories, cut at any byte (torn words, torn erases), on sequential-storage's own
+//!   mock flash, an independent model (`tests/mock_flash.rs`); 1 000 saves wear both pages
+//!   evenly (`tests/wear.rs`).
 //!
 //! # The STM32F4's flash and the 1 kHz loop (docs/design.md §10)
 //!

@@ -32,10 +32,6 @@ fn history(saves: u32) -> Flash {
     s.into_flash()
 }
 
-fn faults(boot: &store::Boot) -> Vec<FaultEntry> {
-    boot.faults.iter().copied().collect()
-}
-
 /// Words written and erases done by `op` on the store opened on `pre` (no cut).
 fn measure(pre: &Flash, op: &dyn Fn(&mut FlashStore)) -> (u64, u32) {
     let (mut s, _) = reboot(pre);
@@ -252,41 +248,6 @@ fn op() -> impl Strategy<Value = Op> {
         2 => any::<u32>().prop_map(Op::Fault),
         1 => Just(Op::Reboot),
     ]
-}
-
-/// What the store must hold: the last completed save (or reset), its generation, the
-/// fault log.
-#[derive(Clone, Debug, Default, PartialEq)]
-struct Expected {
-    set: RecordSet,
-    generation: Option<u32>,
-    faults: Vec<FaultEntry>,
-    next_seq: u32,
-}
-
-impl Expected {
-    fn saved(&self, set: RecordSet) -> Expected {
-        Expected {
-            set,
-            generation: Some(self.generation.map_or(1, |g| g + 1)),
-            ..self.clone()
-        }
-    }
-
-    fn reset(&self) -> Expected {
-        Expected {
-            set: RecordSet::default(),
-            generation: Some(self.generation.map_or(1, |g| g + 1)),
-            faults: Vec::new(),
-            next_seq: self.next_seq,
-        }
-    }
-
-    fn matches(&self, boot: &store::Boot) -> bool {
-        boot.set == self.set
-            && boot.report.generation == self.generation
-            && faults(boot) == self.faults
-    }
 }
 
 proptest! {

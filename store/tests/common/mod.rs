@@ -5,8 +5,8 @@
 use proptest::prelude::*;
 use protocol::{FaultCode, FaultRecord, Gains, Limits, KD_MAX, KI_MAX, KP_MAX, TARGET_MAX_URAD};
 use store::{
-    Boot, BusSettings, Calibration, Clutch, Config, Outcome, RamFlash, RangeChecks, RecordSet,
-    Store, PAGES,
+    Boot, BusSettings, Calibration, Clutch, Config, FaultEntry, Outcome, RamFlash, RangeChecks,
+    RecordSet, Store, PAGES,
 };
 
 /// The store's flash on every board.
@@ -226,4 +226,44 @@ pub fn record_set() -> impl Strategy<Value = RecordSet> {
             calibration,
             bus,
         })
+}
+
+/// The fault log a boot found, oldest first.
+pub fn faults(boot: &Boot) -> Vec<FaultEntry> {
+    boot.faults.iter().copied().collect()
+}
+
+/// What the store must hold: the last completed save (or reset), its generation, the
+/// fault log.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Expected {
+    pub set: RecordSet,
+    pub generation: Option<u32>,
+    pub faults: Vec<FaultEntry>,
+    pub next_seq: u32,
+}
+
+impl Expected {
+    pub fn saved(&self, set: RecordSet) -> Expected {
+        Expected {
+            set,
+            generation: Some(self.generation.map_or(1, |g| g + 1)),
+            ..self.clone()
+        }
+    }
+
+    pub fn reset(&self) -> Expected {
+        Expected {
+            set: RecordSet::default(),
+            generation: Some(self.generation.map_or(1, |g| g + 1)),
+            faults: Vec::new(),
+            next_seq: self.next_seq,
+        }
+    }
+
+    pub fn matches(&self, boot: &Boot) -> bool {
+        boot.set == self.set
+            && boot.report.generation == self.generation
+            && faults(boot) == self.faults
+    }
 }
