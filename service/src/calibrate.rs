@@ -271,7 +271,16 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         model::calibration::correction::Corrector::new(&correction)
             .map_err(|_| ErrorCode::OutOfRange)?;
         let supervision = crate::correction::with_pot_error(cal, &self.service.supervision);
-        self.reconfigure(config, supervision)?;
+        // The clutch the calibration measured bounds the clutch tolerance in force.
+        let previous = self.service.calibrated_longest_um;
+        self.service.calibrated_longest_um = crate::clutch_confirmation::calibrated_longest_um(
+            cal.wire.clutch_length_um,
+            cal.wire.stiffness_uncertainty_permille,
+        );
+        if let Err(e) = self.reconfigure(config, supervision) {
+            self.service.calibrated_longest_um = previous;
+            return Err(e);
+        }
         self.actuator
             .lock(|a| a.pipeline.install(&correction))
             .map_err(|_| ErrorCode::OutOfRange)

@@ -37,6 +37,7 @@ use rtic_core::Mutex;
 
 mod bus_settings;
 pub mod calibrate;
+pub mod clutch_confirmation;
 pub mod correction;
 pub mod dynamixel;
 mod impedance;
@@ -471,9 +472,14 @@ fn refused(e: ServoError) -> ErrorCode {
 #[derive(Debug)]
 pub struct Service {
     design: Design,
+    /// The configuration in force as configured (the clutch tolerance the controller gets
+    /// may be larger: [`clutch_confirmation`]).
     config: Config,
     supervision: SupervisorConfig,
     settings: store::Settings,
+    /// The longest clutch, µm, the calibration in force leaves possible (`None`: no
+    /// calibration, or one that could not bound it).
+    calibrated_longest_um: Option<u32>,
 }
 
 impl Service {
@@ -486,6 +492,7 @@ impl Service {
             config,
             supervision,
             settings: store::Settings::new(config, supervision),
+            calibrated_longest_um: None,
         }
     }
 
@@ -521,15 +528,31 @@ pub struct ServiceDevice<'a, M> {
 }
 
 impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
-    /// Prepares `config`/`supervision` (slow, unlocked), installs it (a copy, locked) and
-    /// keeps it as the configuration in force. Returns the clutch length L, µm.
+    /// Prepares `config`/`supervision` (slow, unlocked) with the clutch tolerance in force
+    /// ([`clutch_confirmation`]), installs it (a copy, locked) and keeps it as the
+    /// configuration in force. Returns the clutch length L, µm.
     fn reconfigure(
         &mut self,
         config: Config,
         supervision: SupervisorConfig,
     ) -> Result<u32, ErrorCode> {
-        let prepared =
-            Prepared::new(&self.service.design, &config, &supervision).map_err(refused)?;
+        let design = &self.service.design;
+        let clutch = match config.clutch {
+            ClutchSetting::Length(l) => l,
+            ClutchSetting::Stiffness(k) => config
+                .beam_model
+                .clutch_length(design, k)
+                .map_err(|_| ErrorCode::OutOfRange)?,
+        };
+        let um = |l: Length| u32::try_from(q32_to_milli(l.to_bits())).unwrap_or(0);
+        let tolerance = clutch_confirmation::tolerance_in_force_um(
+            um(config.limits.clutch_tolerance),
+            um(clutch),
+            self.service.calibrated_longest_um,
+        );
+        let mut in_force = config;
+        in_force.limits.clutch_tolerance = Length::from_bits(milli_to_q32(tolerance.into()));
+        let prepared = Prepared::new(design, &in_force, &supervision).map_err(refused)?;
         let length = prepared.controller().schedule().setting().length();
         let length_um =
             u32::try_from(q32_to_milli(length.to_bits())).map_err(|_| ErrorCode::OutOfRange)?;

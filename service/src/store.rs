@@ -372,6 +372,8 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         let mut boot = storage.load(&checks);
         let faults = storage.fault_log();
         let defaults = service.settings.defaults;
+        // Until the stored calibration (if any) is applied below, nothing confirms the clutch.
+        service.calibrated_longest_um = None;
         let wanted = match boot.set.config {
             Some(c) => model_config(&c, &defaults),
             None => Ok(defaults),
@@ -396,6 +398,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         storage.factory_reset().map_err(storage_error)?;
         settings.stored = RecordSet::default();
         let defaults = settings.defaults;
+        self.service.calibrated_longest_um = None;
         self.reconfigure(defaults.0, defaults.1).map(|_| ())
     }
 

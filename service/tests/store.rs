@@ -478,3 +478,73 @@ fn bus_settings_written_on_the_bus_or_with_set_bus_survive_a_power_cycle() {
     );
     assert_eq!(third.v1(9, ins::PING, &[]), Some(0));
 }
+
+/// The beams' capacity the supervisor checks, as a fraction of τ_cap at the configured
+/// clutch length.
+fn checked_fraction(b: &Board) -> f64 {
+    let servo = &b.actuator.0.servo;
+    let cap = servo.controller().schedule().setting().torque_capacity();
+    servo.supervisor().checked_capacity().get().to_num::<f64>() / cap.get().to_num::<f64>()
+}
+
+#[test]
+fn until_a_calibration_confirms_the_clutch_it_is_taken_0_6_mm_longer() {
+    // τ_cap ∝ 1/L (eq. 2): a clutch ΔL longer than L carries L/(L + ΔL) of τ_cap.
+    let close = |got: f64, want: f64| assert!((got - want).abs() < 1e-6, "{got} vs {want}");
+    let flash = SharedFlash::default();
+    let mut b = Board::boot(&flash);
+    close(checked_fraction(&b), 3.0 / 3.6);
+    // The tolerance on the wire stays the configured one.
+    let Reply::Limits(l) = b.ask(Request::GetLimits) else {
+        panic!("no limits")
+    };
+    assert_eq!(l.clutch_tolerance_um, 0);
+    // A calibration that measured 3 mm with 6 % stiffness uncertainty: longest
+    // 3·(3000 − 120)/(3000 − 180) = 3.0638 mm, rounded up to 3.064 mm.
+    let cal = store::Calibration {
+        wire: protocol::Calibration {
+            motor_polarity: 1,
+            encoder_direction: 1,
+            pot_direction: 1,
+            current_offset_counts: 0,
+            pot_offset_counts: 0,
+            resistance_mohm: 8_000,
+            back_emf_uv_s_per_rad: 1_940_000,
+            gear_friction_unm: 10_000,
+            link_inertia_kg_mm2: 1_000,
+            stiffness_mnm_per_rad: Some(265_500),
+            clutch_length_um: Some(3_000),
+            stiffness_uncertainty_permille: 60,
+        },
+        encoder_counts_per_turn: 4096,
+        pot_gain_ppm: 1_000_000,
+        current_gain_ppm: 1_000_000,
+        pot_error_centi: None,
+    };
+    b.service.persist_calibration(cal, &mut b.actuator).unwrap();
+    assert_eq!(b.ask(Request::Load), Reply::Ok);
+    close(checked_fraction(&b), 3.0 / 3.064);
+    // The same after a power cycle.
+    let mut b = Board::boot(&flash);
+    close(checked_fraction(&b), 3.0 / 3.064);
+    // A clutch moved beyond what the calibration measured: unconfirmed again.
+    assert_eq!(
+        b.ask(Request::SetClutchLength { length_um: 5_000 }),
+        Reply::Ok
+    );
+    close(checked_fraction(&b), 5.0 / 5.6);
+    // A larger configured tolerance wins.
+    assert_eq!(
+        b.ask(Request::SetClutchLength { length_um: 3_000 }),
+        Reply::Ok
+    );
+    let limits = protocol::Limits {
+        clutch_tolerance_um: 1_000,
+        ..protocol::Limits::DEFAULT
+    };
+    assert_eq!(b.ask(Request::SetLimits(limits)), Reply::Ok);
+    close(checked_fraction(&b), 3.0 / 4.0);
+    // A factory reset forgets the calibration.
+    assert_eq!(b.ask(Request::FactoryReset), Reply::Ok);
+    close(checked_fraction(&b), 3.0 / 3.6);
+}
