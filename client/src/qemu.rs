@@ -129,17 +129,57 @@ pub fn workspace_root() -> Option<PathBuf> {
         .then(|| root.canonicalize().unwrap_or(root))
 }
 
+/// The workspace's cargo target directory: `$CARGO_TARGET_DIR` (relative to `root`), else
+/// `<root>/target`.
+#[must_use]
+pub fn target_dir(root: &Path) -> PathBuf {
+    std::env::var_os("CARGO_TARGET_DIR")
+        .map(PathBuf::from)
+        .map_or_else(|| root.join("target"), |d| root.join(d))
+}
+
 /// Where `cargo build --release` puts the firmware ELF for `board`:
-/// `$CARGO_TARGET_DIR/<triple>/release/vsa-firmware` (`<root>/target` by default).
+/// `<target>/<triple>/release/vsa-firmware` ([`target_dir`]).
 #[must_use]
 pub fn elf_path(root: &Path, board: Board) -> PathBuf {
-    let target_dir = std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .map_or_else(|| root.join("target"), |d| root.join(d));
-    target_dir
+    target_dir(root)
         .join(board.target())
         .join("release")
         .join("vsa-firmware")
+}
+
+/// QEMU's executable.
+pub const QEMU_BINARY: &str = "qemu-system-arm";
+
+/// Where `cargo xtask` unpacks a private QEMU when the system's package cannot be
+/// installed without removing another (docs/running.md): `<target>/qemu`.
+#[must_use]
+pub fn private_qemu_root(target_dir: &Path) -> PathBuf {
+    target_dir.join("qemu")
+}
+
+/// The private QEMU's wrapper script, `<target>/qemu/bin/qemu-system-arm`.
+#[must_use]
+pub fn private_qemu(target_dir: &Path) -> PathBuf {
+    private_qemu_root(target_dir).join("bin").join(QEMU_BINARY)
+}
+
+/// The QEMU to run: [`QEMU_BINARY`] if it is on `PATH`, else the workspace's private copy
+/// ([`private_qemu`]) if there is one, else [`QEMU_BINARY`] (which then fails to start with
+/// a message that says how to get it).
+#[must_use]
+pub fn default_qemu() -> PathBuf {
+    let on_path = std::env::var_os("PATH")
+        .is_some_and(|p| std::env::split_paths(&p).any(|d| d.join(QEMU_BINARY).is_file()));
+    if !on_path {
+        if let Some(private) = workspace_root()
+            .map(|root| private_qemu(&target_dir(&root)))
+            .filter(|p| p.is_file())
+        {
+            return private;
+        }
+    }
+    PathBuf::from(QEMU_BINARY)
 }
 
 /// Builds the firmware for `board` in the workspace at `root` (`cargo build --release -p
@@ -499,7 +539,7 @@ impl QemuOptions {
             board,
             elf: elf.into(),
             firmware_args: Vec::new(),
-            qemu: PathBuf::from("qemu-system-arm"),
+            qemu: default_qemu(),
             icount_shift: ICOUNT_SHIFT,
             align: true,
             serial_index: 1,
@@ -611,7 +651,16 @@ impl QemuBoard {
             .qemu_command(serial_port)
             .command()?
             .spawn()
-            .map_err(|e| err(&format!("starting {}", opts.qemu.display()), e))?;
+            .map_err(|e| {
+                let mut m = format!("starting {}: {e}", opts.qemu.display());
+                if e.kind() == std::io::ErrorKind::NotFound {
+                    m.push_str(
+                        " (QEMU is not installed: `cargo xtask run` installs it, or a private \
+                         copy under target/qemu when the system package cannot be installed)",
+                    );
+                }
+                Error::Qemu(m)
+            })?;
 
         // QEMU's own messages (stderr, and the lines taken out of stdout), kept for error
         // messages.
@@ -841,5 +890,19 @@ mod tests {
         let o = QemuOptions::new(Board::QemuM4, "/nonexistent/vsa-firmware");
         let e = QemuBoard::spawn(&o, LogSink::Discard).unwrap_err();
         assert!(e.to_string().contains("does not exist"), "{e}");
+    }
+
+    #[test]
+    fn missing_qemu_says_how_to_get_it() {
+        let mut o = QemuOptions::new(
+            Board::QemuM4,
+            concat!(env!("CARGO_MANIFEST_DIR"), "/Cargo.toml"),
+        );
+        o.qemu = PathBuf::from("/nonexistent/qemu-system-arm");
+        let e = QemuBoard::spawn(&o, LogSink::Discard).unwrap_err();
+        assert!(
+            e.to_string().contains("`cargo xtask run` installs it"),
+            "{e}"
+        );
     }
 }

@@ -51,7 +51,7 @@ pub fn ensure_qemu() -> Result<()> {
     if !private && qemu_version().is_some() {
         return Ok(());
     }
-    let wrapper = private_root().join("bin").join(QEMU_PACKAGE);
+    let wrapper = client::qemu::private_qemu(&target_dir());
     if wrapper.exists() {
         put_first_on_path(wrapper.parent().expect("bin/ has a parent"))?;
         if qemu_version().is_some() {
@@ -170,7 +170,7 @@ fn parse_plan(text: &str) -> InstallPlan {
 
 /// `target/qemu/`: the private QEMU (`debs/`, the unpacked `root/`, the `bin/` wrapper).
 fn private_root() -> PathBuf {
-    target_dir().join("qemu")
+    client::qemu::private_qemu_root(&target_dir())
 }
 
 /// Downloads `packages` and unpacks them under `target/qemu/root`, then writes
@@ -204,14 +204,16 @@ fn unpack_private(packages: &[String]) -> Result<()> {
         }
     }
     let lib_dirs = library_dirs(&tree)?;
-    let bin = root.join("bin");
-    std::fs::create_dir_all(&bin)?;
-    let wrapper = bin.join(QEMU_PACKAGE);
+    // Where `vsa --qemu` looks for it too.
+    let wrapper = client::qemu::private_qemu(&target_dir());
+    if let Some(bin) = wrapper.parent() {
+        std::fs::create_dir_all(bin)?;
+    }
     let script = format!(
         "#!/bin/sh\n# Private QEMU unpacked by `cargo xtask` (see docs/qemu.md); the system's packages are untouched.\n\
          LD_LIBRARY_PATH=\"{}${{LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}}\" exec \"{}\" \"$@\"\n",
         lib_dirs.join(":"),
-        tree.join("usr/bin").join(QEMU_PACKAGE).display()
+        tree.join("usr/bin").join(client::qemu::QEMU_BINARY).display()
     );
     std::fs::write(&wrapper, script)?;
     use std::os::unix::fs::PermissionsExt;
