@@ -337,6 +337,7 @@ impl Device for MockDevice {
             limits: LimitFlags::NONE,
             clutch_length_um: self.clutch_length_um,
             stiffness_mnm_per_rad: self.stiffness_mnm_per_rad,
+            clutch_tolerance_um: 0,
             tick: self.tick,
             moving: false,
             telemetry_rate_hz: self.telemetry_rate_hz,

@@ -608,6 +608,10 @@ pub struct Status {
     pub clutch_length_um: u32,
     /// Configured joint stiffness k(L), mN·m/rad.
     pub stiffness_mnm_per_rad: u32,
+    /// How much longer than configured the clutch is taken to be, µm: the configured
+    /// tolerance ([`Limits::clutch_tolerance_um`]), or more until a calibration has
+    /// confirmed the clutch (docs/calibration.md, "Until the clutch is confirmed").
+    pub clutch_tolerance_um: u16,
     /// Control tick (1 kHz ticks since start: ms).
     pub tick: u32,
     /// A motion (move, step transient, sine) is running.

@@ -216,6 +216,7 @@ fn largest_replies() -> Vec<Reply> {
             limits: LimitFlags(u8::MAX),
             clutch_length_um: u32::MAX,
             stiffness_mnm_per_rad: u32::MAX,
+            clutch_tolerance_um: u16::MAX,
             tick: u32::MAX,
             moving: true,
             telemetry_rate_hz: u16::MAX,

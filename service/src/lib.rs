@@ -369,6 +369,8 @@ impl Actuator {
             limits: self.limits,
             clutch_length_um: sat_u32(i64::from(q32_to_milli(sched.setting().length().to_bits()))),
             stiffness_mnm_per_rad: stiffness_mnm(sched.stiffness()),
+            clutch_tolerance_um: q32_to_milli(sched.clutch_tolerance().to_bits())
+                .clamp(0, i32::from(u16::MAX)) as u16,
             tick: servo.ticks(),
             moving: servo.controller().trajectory().is_moving(),
             telemetry_rate_hz: self.telemetry.rate_hz(),

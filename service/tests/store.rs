@@ -494,6 +494,7 @@ fn until_a_calibration_confirms_the_clutch_it_is_taken_0_6_mm_longer() {
     let flash = SharedFlash::default();
     let mut b = Board::boot(&flash);
     close(checked_fraction(&b), 3.0 / 3.6);
+    assert_eq!(b.status().clutch_tolerance_um, 600);
     // The tolerance on the wire stays the configured one.
     let Reply::Limits(l) = b.ask(Request::GetLimits) else {
         panic!("no limits")
@@ -524,6 +525,7 @@ fn until_a_calibration_confirms_the_clutch_it_is_taken_0_6_mm_longer() {
     b.service.persist_calibration(cal, &mut b.actuator).unwrap();
     assert_eq!(b.ask(Request::Load), Reply::Ok);
     close(checked_fraction(&b), 3.0 / 3.064);
+    assert_eq!(b.status().clutch_tolerance_um, 64);
     // The same after a power cycle.
     let mut b = Board::boot(&flash);
     close(checked_fraction(&b), 3.0 / 3.064);

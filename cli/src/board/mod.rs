@@ -1055,6 +1055,13 @@ fn status_text(st: &Status) -> String {
             format!("{} N·m/rad", show(st.stiffness_mnm_per_rad.into(), 3)),
         ),
         (
+            "clutch tolerance",
+            format!(
+                "{} mm (the beams' limits hold for a clutch this much longer than set)",
+                show(st.clutch_tolerance_um.into(), 3)
+            ),
+        ),
+        (
             "tick",
             format!("{} ({} s)", st.tick, trim(f64::from(st.tick) / 1e3)),
         ),
@@ -1232,6 +1239,7 @@ mod tests {
                 .with(FaultCode::CommandTimeout),
             clutch_length_um: 3_000,
             stiffness_mnm_per_rad: 265_463,
+            clutch_tolerance_um: 600,
             tick: 12_345,
             telemetry_rate_hz: 500,
             ..Status::default()
@@ -1243,6 +1251,7 @@ mod tests {
         );
         assert!(s.contains("clutch length    3 mm"), "{s}");
         assert!(s.contains("stiffness        265.463 N·m/rad"), "{s}");
+        assert!(s.contains("clutch tolerance 0.6 mm (the beams'"), "{s}");
         assert!(s.contains("tick             12345 (12.345 s)"), "{s}");
         assert!(
             s.contains("telemetry        500 Hz, 0 samples dropped"),

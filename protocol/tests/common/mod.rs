@@ -284,13 +284,13 @@ pub fn status() -> impl Strategy<Value = Status> {
             any::<u32>(),
             any::<bool>(),
         ),
-        calibration_progress(),
+        (calibration_progress(), any::<u16>()),
     )
         .prop_map(
             |(
                 (state, faults, first, limits, clutch, k),
                 (tick, moving, rate, dropped, errors, differs),
-                calibration,
+                (calibration, tolerance),
             )| {
                 Status {
                     state,
@@ -299,6 +299,7 @@ pub fn status() -> impl Strategy<Value = Status> {
                     limits: LimitFlags(limits),
                     clutch_length_um: clutch,
                     stiffness_mnm_per_rad: k,
+                    clutch_tolerance_um: tolerance,
                     tick,
                     moving,
                     telemetry_rate_hz: rate,
@@ -711,6 +712,7 @@ impl Device for MockDevice {
             limits: LimitFlags::NONE,
             clutch_length_um: self.clutch_um,
             stiffness_mnm_per_rad: self.stiffness_mnm_per_rad,
+            clutch_tolerance_um: 0,
             tick: 0,
             moving: self.moving,
             telemetry_rate_hz: self.rate_hz,
