@@ -15,7 +15,7 @@ use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 use embedded_storage_async::nor_flash as nor_async;
 use proptest::prelude::*;
 use sequential_storage::mock_flash::{MockFlashBase, MockFlashError, WriteCountCheck};
-use store::{FaultEntry, RangeChecks, RecordSet, Store, StoreError, PAGES, PAGE_SIZE, WORD_SIZE};
+use store::{RangeChecks, RecordSet, Store, StoreError, PAGES, PAGE_SIZE, WORD_SIZE};
 
 /// sequential-storage's mock with the store's geometry: 2 pages of 16 KiB, 4-byte words.
 type Base = MockFlashBase<PAGES, WORD_SIZE, { PAGE_SIZE / WORD_SIZE }>;
@@ -141,12 +141,7 @@ proptest! {
         }
         let mut flash = s.into_flash();
         let (_, boot) = power_on(&flash);
-        let mut want = Expected {
-            set: boot.set,
-            generation: boot.report.generation,
-            faults: faults(&boot),
-            next_seq: boot.faults.latest().map_or(0, |e| e.seq + 1),
-        };
+        let mut want = Expected::booted(&boot);
         for op in ops {
             let (mut s, boot) = power_on(&flash);
             assert_nothing_rejected(&boot);
@@ -154,15 +149,7 @@ proptest! {
             let (cut, candidate) = match &op {
                 Op::Save(set, c) => (*c, want.saved(*set)),
                 Op::Reset(c) => (*c, want.reset()),
-                Op::Fault(v, c) => {
-                    let mut next = want.clone();
-                    next.faults.push(FaultEntry { seq: want.next_seq, fault: sample_fault(*v % 1000) });
-                    if next.faults.len() > store::FAULT_LOG_LEN {
-                        next.faults.remove(0);
-                    }
-                    next.next_seq += 1;
-                    (*c, next)
-                }
+                Op::Fault(v, c) => (*c, want.logged(sample_fault(*v % 1000))),
                 Op::Reboot => (None, want.clone()),
             };
             s.flash().base.bytes_until_shutoff = cut;

@@ -10,7 +10,7 @@ mod common;
 
 use common::*;
 use proptest::prelude::*;
-use store::{FaultEntry, PowerCut, RangeChecks, RecordSet, Store, StoreError};
+use store::{PowerCut, RangeChecks, RecordSet, Store, StoreError};
 
 /// Which side of the cut a reboot found.
 #[derive(Debug, Default)]
@@ -261,12 +261,7 @@ proptest! {
         // Start anywhere in the page cycle: `prefill` saves and some faults first.
         let mut flash = history(prefill);
         let (_, boot) = reboot(&flash);
-        let mut want = Expected {
-            set: boot.set,
-            generation: boot.report.generation,
-            faults: faults(&boot),
-            next_seq: boot.faults.latest().map_or(0, |e| e.seq + 1),
-        };
+        let mut want = Expected::booted(&boot);
         for op in ops {
             let (mut s, boot) = reboot(&flash);
             assert_nothing_rejected(&boot);
@@ -291,11 +286,7 @@ proptest! {
                     let fault = sample_fault(*v % 1000);
                     let seq = s.log_fault(fault).unwrap();
                     prop_assert_eq!(seq, want.next_seq);
-                    want.faults.push(FaultEntry { seq, fault });
-                    if want.faults.len() > store::FAULT_LOG_LEN {
-                        want.faults.remove(0);
-                    }
-                    want.next_seq += 1;
+                    want = want.logged(fault);
                     Ok(())
                 }
                 Op::Reboot => Ok(()),

@@ -244,6 +244,30 @@ pub struct Expected {
 }
 
 impl Expected {
+    /// What a boot found.
+    pub fn booted(boot: &Boot) -> Expected {
+        Expected {
+            set: boot.set,
+            generation: boot.report.generation,
+            faults: faults(boot),
+            next_seq: boot.faults.latest().map_or(0, |e| e.seq + 1),
+        }
+    }
+
+    /// After `fault` is logged: the next number, the oldest of a full log dropped.
+    pub fn logged(&self, fault: FaultRecord) -> Expected {
+        let mut next = self.clone();
+        next.faults.push(FaultEntry {
+            seq: self.next_seq,
+            fault,
+        });
+        if next.faults.len() > store::FAULT_LOG_LEN {
+            next.faults.remove(0);
+        }
+        next.next_seq += 1;
+        next
+    }
+
     pub fn saved(&self, set: RecordSet) -> Expected {
         Expected {
             set,
