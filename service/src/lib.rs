@@ -96,6 +96,19 @@ pub const fn q32_to_milli(bits: i64) -> i32 {
     sat_i32(q32_scaled(bits, 1_000))
 }
 
+/// I32F32 bits → thousandths of the unit in a `u16` (the wire's limits), clamped to
+/// 0…65535.
+const fn q32_to_milli_u16(bits: i64) -> u16 {
+    let m = q32_to_milli(bits);
+    if m < 0 {
+        0
+    } else if m > u16::MAX as i32 {
+        u16::MAX
+    } else {
+        m as u16
+    }
+}
+
 /// `v`/`per` units → I32F32 bits, rounded half away from zero, saturated: the quotient
 /// and the remainder are converted apart, so nothing overflows.
 const fn to_q32(v: i64, per: i64) -> i64 {
@@ -369,8 +382,7 @@ impl Actuator {
             limits: self.limits,
             clutch_length_um: sat_u32(i64::from(q32_to_milli(sched.setting().length().to_bits()))),
             stiffness_mnm_per_rad: stiffness_mnm(sched.stiffness()),
-            clutch_tolerance_um: q32_to_milli(sched.clutch_tolerance().to_bits())
-                .clamp(0, i32::from(u16::MAX)) as u16,
+            clutch_tolerance_um: q32_to_milli_u16(sched.clutch_tolerance().to_bits()),
             tick: servo.ticks(),
             moving: servo.controller().trajectory().is_moving(),
             telemetry_rate_hz: self.telemetry.rate_hz(),
@@ -446,15 +458,14 @@ fn with_limits(
 fn limits_of(config: &Config, supervision: &SupervisorConfig) -> Limits {
     let l = &config.limits;
     let s = supervision;
-    let milli = |bits: i64| q32_to_milli(bits).clamp(0, i32::from(u16::MAX)) as u16;
     Limits {
-        torque_margin_permille: milli(l.torque_margin.to_bits()),
-        current_ma: milli(l.max_current_a.to_bits()),
+        torque_margin_permille: q32_to_milli_u16(l.torque_margin.to_bits()),
+        current_ma: q32_to_milli_u16(l.max_current_a.to_bits()),
         motor_torque_unm: sat_u32(i64::from(q32_to_micro(l.max_motor_torque.to_bits()))),
         duty_permille: l.max_duty.unsigned_abs(),
         position_min_urad: q32_to_micro(s.position_min.to_bits()),
         position_max_urad: q32_to_micro(s.position_max.to_bits()),
-        clutch_tolerance_um: milli(l.clutch_tolerance.to_bits()),
+        clutch_tolerance_um: q32_to_milli_u16(l.clutch_tolerance.to_bits()),
     }
 }
 
@@ -539,25 +550,20 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         supervision: SupervisorConfig,
     ) -> Result<u32, ErrorCode> {
         let design = &self.service.design;
-        let clutch = match config.clutch {
-            ClutchSetting::Length(l) => l,
-            ClutchSetting::Stiffness(k) => config
-                .beam_model
-                .clutch_length(design, k)
-                .map_err(|_| ErrorCode::OutOfRange)?,
-        };
-        let um = |l: Length| u32::try_from(q32_to_milli(l.to_bits())).unwrap_or(0);
+        let um = |l: Length| u32::try_from(q32_to_milli(l.to_bits())).ok();
+        // The length the prepared setting will have (L, or L(k) for a stiffness).
+        let clutch = config
+            .clutch_length(design)
+            .map_err(|_| ErrorCode::OutOfRange)?;
+        let length_um = um(clutch).ok_or(ErrorCode::OutOfRange)?;
         let tolerance = clutch_confirmation::tolerance_in_force_um(
-            um(config.limits.clutch_tolerance),
-            um(clutch),
+            um(config.limits.clutch_tolerance).unwrap_or(0),
+            length_um,
             self.service.calibrated_longest_um,
         );
         let mut in_force = config;
         in_force.limits.clutch_tolerance = Length::from_bits(milli_to_q32(tolerance.into()));
         let prepared = Prepared::new(design, &in_force, &supervision).map_err(refused)?;
-        let length = prepared.controller().schedule().setting().length();
-        let length_um =
-            u32::try_from(q32_to_milli(length.to_bits())).map_err(|_| ErrorCode::OutOfRange)?;
         self.actuator.lock(|a| a.servo.install_prepared(&prepared));
         self.service.config = config;
         self.service.supervision = supervision;

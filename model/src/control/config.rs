@@ -4,7 +4,9 @@
 
 use fixed::types::I32F32;
 
+use super::error::ControlError;
 use crate::beam::BeamModel;
+use crate::design::Design;
 use crate::units::{Frequency, Inertia, Length, Ratio, Stiffness, Torque};
 
 /// Which clutch setting to run at.
@@ -175,5 +177,17 @@ impl Config {
             },
             sensors: SensorCal::DEFAULT,
         }
+    }
+
+    /// The clutch length the setting asks for on `design`: L itself, or L(k) of the beam
+    /// model for a stiffness (not checked against the adjustable range).
+    ///
+    /// # Errors
+    /// As the beam model's L(k) for a stiffness it cannot invert.
+    pub fn clutch_length(&self, design: &Design) -> Result<Length, ControlError> {
+        Ok(match self.clutch {
+            ClutchSetting::Length(l) => l,
+            ClutchSetting::Stiffness(k) => self.beam_model.clutch_length(design, k)?,
+        })
     }
 }

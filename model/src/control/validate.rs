@@ -2,7 +2,7 @@
 
 use fixed::types::I32F32;
 
-use super::config::{ClutchSetting, Config};
+use super::config::Config;
 use super::error::ControlError;
 use crate::beam::Setting;
 use crate::design::Design;
@@ -94,10 +94,7 @@ pub(crate) fn validate(design: &Design, cfg: &Config) -> Result<Setting, Control
             return Err(E::GainOutOfRange);
         }
     }
-    let len = match cfg.clutch {
-        ClutchSetting::Length(l) => l,
-        ClutchSetting::Stiffness(k) => cfg.beam_model.clutch_length(design, k)?,
-    };
+    let len = cfg.clutch_length(design)?;
     let (l_min, l_max) = design.adjustable_range();
     if len < l_min || len > l_max {
         return Err(E::ClutchOutOfRange);
