@@ -16,6 +16,7 @@
 //! printed but only enforced with `VSA_GRID_STRICT=1`.
 
 use host_tests::grid::{self, Outcome};
+use plant::overrides::Override;
 
 /// Metrics whose limit the controller does not meet on every case yet (printed with their
 /// worst case and the number of violations; enforced only under `VSA_GRID_STRICT=1`).
@@ -53,16 +54,19 @@ fn sweep(label: &str, off_nominal: bool, seed_offset: u64) {
         .ok()
         .and_then(|v| v.parse::<f64>().ok())
         .unwrap_or(f64::INFINITY);
-    let extra = std::env::var("VSA_GRID_PLANT").unwrap_or_default();
+    let extra: Vec<Override> = std::env::var("VSA_GRID_PLANT")
+        .unwrap_or_default()
+        .split(',')
+        .filter(|o| !o.is_empty())
+        .map(|o| Override::parse(o).unwrap_or_else(|e| panic!("VSA_GRID_PLANT {o}: {e}")))
+        .collect();
     let outcomes: Vec<Outcome> = grid::cases(n, seed, off_nominal)
         .into_iter()
         .enumerate()
         .filter(|(_, c)| c.load_nm.abs() <= max_load)
         .map(|(i, mut c)| {
-            for o in extra.split(',').filter(|o| !o.is_empty()) {
-                c.plant
-                    .push_str(o)
-                    .unwrap_or_else(|e| panic!("VSA_GRID_PLANT {o}: {e}"));
+            for o in &extra {
+                c.plant.set(*o);
             }
             grid::run(i, &c)
         })

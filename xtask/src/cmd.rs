@@ -12,11 +12,10 @@ pub fn workspace_root() -> &'static Path {
         .expect("xtask/ lives inside the workspace")
 }
 
-/// The `target/` directory of the workspace.
+/// The `target/` directory of the workspace (as the cargo the xtask runs in the workspace
+/// root sees it).
 pub fn target_dir() -> PathBuf {
-    std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| workspace_root().join("target"))
+    client::qemu::target_dir(workspace_root())
 }
 
 /// A `cargo` command (the same cargo that runs xtask) in the workspace root.
