@@ -636,7 +636,9 @@ impl FloatController {
         }
     }
 
-    /// Starts a trajectory command.
+    /// Starts a trajectory command. A move runs for the duration it gives: pass the command
+    /// `Controller::planned` returns (the fixed-point planning of the move's duration is not
+    /// ported).
     pub fn command(&mut self, cmd: Command) {
         let s = &self.s;
         (self.ff_vel, self.ff_acc) = match cmd {

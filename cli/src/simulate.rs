@@ -347,7 +347,8 @@ pub fn metrics_json(m: &Metrics, tracking: bool) -> String {
             "\"rise_time_s\":{},\"peak_stress_ratio\":{},\"allowable_stress_pa\":{},",
             "\"max_error_rad\":{},\"current_limited\":{},\"duty_saturated\":{},",
             "\"steady_duty_span\":{},\"steady_count_span\":{},\"peak_spring_torque_nm\":{},",
-            "\"target_rad\":{},\"output_hash\":\"{:016x}\",\"ticks\":{},\"faults\":[{}]}}"
+            "\"target_rad\":{},\"output_hash\":\"{:016x}\",\"ticks\":{},\"faults\":[{}],",
+            "\"move_ms\":{}}}"
         ),
         step(m.overshoot_pct),
         opt(step_opt(m.settling_time_s)),
@@ -372,6 +373,7 @@ pub fn metrics_json(m: &Metrics, tracking: bool) -> String {
             .map(|n| format!("\"{n}\""))
             .collect::<Vec<_>>()
             .join(","),
+        m.move_ms.map_or("null".to_string(), |ms| ms.to_string()),
     )
 }
 
@@ -540,6 +542,13 @@ pub fn run(args: &SimulateArgs) -> Result<(), String> {
         sched.torque_limit().get().to_num::<f64>()
     );
     let ms = |v: Option<f64>| v.map_or("–".to_string(), |t| format!("{:.0} ms", t * 1e3));
+    if let (Some(planned), Command::Move { duration_ms, .. }) = (m.move_ms, sc.command) {
+        if planned > duration_ms {
+            println!(
+                "move               {planned} ms instead of {duration_ms} ms: the shortest the limits allow"
+            );
+        }
+    }
     if let Some((_, per_nm, ff)) = &imp {
         // In the servo's frame, as above.
         let target = m.target_rad;

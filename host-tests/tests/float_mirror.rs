@@ -87,6 +87,9 @@ fn closed_loops_track_each_other_within_one_encoder_count() {
         let (mut duty_diff, mut worst_angle) = (0i64, 0f64);
         for tick in 0..2000 {
             if let Some(c) = command_at(tick) {
+                // The f32 port mirrors the tick, not the command-time planning: it runs
+                // the move the fixed-point controller planned.
+                let c = servo.controller().planned(c);
                 servo.command(c).unwrap();
                 assert!(fservo.command(c));
             }

@@ -196,6 +196,10 @@ pub struct Metrics {
     /// run without one), Pa: a fault latched with this below σ_allow is a false trip
     /// unless a sensor really failed.
     pub peak_stress_before_fault_pa: f64,
+    /// The duration the scenario's move ran for, ms: the commanded one, or the shortest
+    /// the limits allow where that is longer (`Controller::planned`); `None` for other
+    /// commands.
+    pub move_ms: Option<u32>,
 }
 
 /// FNV-1a 64 offset basis.
@@ -557,6 +561,7 @@ where
         readings.link_encoder,
     );
     let (mut after_fault, mut before_fault) = (0.0f64, 0.0f64);
+    let mut move_ms = None;
     for tick in 0..rec.total_ticks() {
         // The scenario's command at `settle_ticks`, then the script's (if any).
         let command = if tick == sc.settle_ticks {
@@ -567,6 +572,11 @@ where
                 .and_then(&mut script)
         };
         if let Some(command) = command {
+            if tick == sc.settle_ticks {
+                if let Command::Move { duration_ms, .. } = servo.controller().planned(command) {
+                    move_ms = Some(duration_ms);
+                }
+            }
             // A fault latched earlier refuses the command; the run goes on (its metrics
             // show the fault).
             let given = match sc.impedance {
@@ -615,5 +625,6 @@ where
     m.peak_stress_before_fault_pa = before_fault;
     m.faults = servo.faults();
     m.first_fault = servo.supervisor().first_fault();
+    m.move_ms = move_ms;
     Ok(m)
 }

@@ -50,6 +50,8 @@ pub enum Request {
         /// Target link angle, µrad, |·| ≤ [`TARGET_MAX_URAD`] (2π rad).
         target_urad: i32,
         /// Duration, ms, in [`MOVE_DURATION_MIN_MS`]..=[`MOVE_DURATION_MAX_MS`] (1 ms–60 s).
+        /// The board runs the move for longer where the current, voltage or beam limits
+        /// do not allow it that fast (docs/design.md §11, "Moves within the limits").
         duration_ms: u32,
     },
     /// Step of the reference to an absolute link angle.

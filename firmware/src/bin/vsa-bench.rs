@@ -219,6 +219,8 @@ mod suite {
             let mut freadings = fplant.readings();
             for tick in 0..SEGMENT_TICKS {
                 if let Some(cmd) = command_at(tick) {
+                    // The f32 port runs the move the fixed-point controller planned.
+                    let cmd = servo.controller().planned(cmd);
                     let _ = servo.command(cmd);
                     let _ = ctl.command(cmd);
                     fservo.command(cmd);

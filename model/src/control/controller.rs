@@ -6,6 +6,7 @@ use fixed::types::I32F32;
 use super::config::Config;
 use super::error::ControlError;
 use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Q16_ONE};
+use super::move_duration;
 use super::schedule::{Schedule, TICKS_PER_S};
 use super::sine_feedforward::FeedForward;
 use super::trajectory::{Command, Reference, Trajectory};
@@ -232,11 +233,33 @@ impl Controller {
                 self.traj
                     .step(target, &self.sched, q32_to_q16(self.integ))?;
             }
-            _ => self.traj.command(cmd)?,
+            _ => self.traj.command(self.planned(cmd))?,
         }
         self.ff = ff;
         self.commanded = true;
         Ok(())
+    }
+
+    /// `cmd` as [`Controller::command`] runs it now: a move no shorter than the limits
+    /// allow with the load the integrator holds ([`move_duration`]), anything else as it
+    /// is.
+    #[must_use]
+    pub fn planned(&self, cmd: Command) -> Command {
+        match cmd {
+            Command::Move {
+                target,
+                duration_ms,
+            } => Command::Move {
+                target,
+                duration_ms: duration_ms.max(move_duration::shortest_ms(
+                    &self.sched,
+                    self.traj.reference().position.to_bits(),
+                    target.to_bits(),
+                    q32_to_q16(self.integ),
+                )),
+            },
+            other => other,
+        }
     }
 
     /// Moves the reference to `target` at once, without the raw step's profile: the

@@ -10,7 +10,7 @@
 //!    filter, so that the observer's jump on a duty step is no torque), blended with the
 //!    pot's deflection-based estimate by inverse variance;
 //! 4. reference r, ṙ, r̈ from [`trajectory`] (a raw step along the near-time-optimal
-//!    profile of [`dash`]);
+//!    profile of [`dash`]; a move no shorter than the limits allow, [`move_duration`]);
 //! 5. error e = r − θ_l, zero while r lies in the measured encoder count;
 //! 6. feed-forward of the rigid inverse model (the two-mass inverse for a sine,
 //!    [`sine_feedforward`]), plus the free-play and compliance
@@ -41,6 +41,7 @@ pub mod dash;
 pub mod error;
 pub mod gain;
 pub mod impedance;
+pub mod move_duration;
 pub mod schedule;
 pub mod sine;
 pub mod sine_feedforward;

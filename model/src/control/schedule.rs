@@ -10,6 +10,7 @@ use super::config::{Config, Limits, PidGains};
 use super::dash::{self, DashGains};
 use super::error::ControlError;
 use super::gain::{Gain, Q16_ONE};
+use super::move_duration;
 use super::validate::validate;
 use super::wide::{add, div, mul, sub, to_gain, to_q16, to_q32, wide};
 use crate::beam::Setting;
@@ -189,6 +190,9 @@ pub struct Schedule {
     pub(crate) encoder_zero: u16,
     /// The raw step's profile constants.
     pub(crate) dash: DashGains,
+    /// `MOVE_CURRENT_FRACTION`/ff_acc, rad/s² per ‰ of current headroom: a move's peak
+    /// acceleration ([`super::move_duration`]).
+    pub(crate) move_accel_per_duty: Gain,
 }
 
 /// Control ticks per second (the loop runs at 1 kHz).
@@ -378,6 +382,8 @@ impl Schedule {
             top_per_duty: to_gain(div(wide(dash::VOLTAGE_FRACTION), ff_vel)?)?,
             beta: to_gain(mul(div(ff_vel, ff_acc)?, dt)?)?,
         };
+        let move_accel_per_duty =
+            to_gain(div(wide(move_duration::MOVE_CURRENT_FRACTION), ff_acc)?)?;
         Ok(Schedule {
             setting,
             stiffness,
@@ -470,6 +476,7 @@ impl Schedule {
             pot_center: i32::from(cfg.sensors.pot_center),
             encoder_zero: cfg.sensors.encoder_zero,
             dash,
+            move_accel_per_duty,
         })
     }
 
