@@ -36,8 +36,8 @@ use core::f32::consts::PI;
 
 use model::control::schedule::{
     CONTACT_TORQUE_NM, COULOMB_RAMP_RAD_S, CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM,
-    FREE_PLAY_SWITCH_NM, IMPACT_SPEED_FRACTION, OBSERVER_RATIO, RESISTANCE_TOLERANCE, REST_LOAD_NM,
-    REST_TORQUE_NM, REST_ZONE_FREE_PLAYS,
+    FREE_PLAY_SWITCH_NM, IMPACT_SPEED_FRACTION, OBSERVER_RATIO, RESISTANCE_LOW,
+    RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM, REST_ZONE_FREE_PLAYS,
 };
 use model::control::{dash, Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
@@ -163,6 +163,9 @@ pub struct FloatSchedule {
     bv: f32,
     w_defl: f32,
     i_lim: f32,
+    /// The current window's half-width, A (`Schedule`'s: at most `RESISTANCE_LOW` of the
+    /// motor's rating).
+    i_win: f32,
     i_lim_from_beams: bool,
     tau_lim: f32,
     duty_lim: f32,
@@ -248,6 +251,9 @@ impl FloatSchedule {
             bv,
             w_defl: i32f32(sched.deflection_weight().to_bits()),
             i_lim,
+            i_win: i_lim.min(
+                i32f32(config.limits.max_current_a.to_bits()) * i32f32(RESISTANCE_LOW.to_bits()),
+            ),
             i_lim_from_beams: from_beams,
             tau_lim: i32f32(sched.torque_limit().to_bits()),
             duty_lim: max_duty,
@@ -819,7 +825,7 @@ impl FloatController {
 
         // --- limits ---
         let emf = s.duty_per_w * w_gear;
-        let di = s.duty_per_amp * s.i_lim;
+        let di = s.duty_per_amp * s.i_win;
         let dl = s.duty_lim;
         let (hi_i, lo_i) = (emf + di, emf - di);
         let (mut hi, mut lo) = (hi_i.min(dl), lo_i.max(-dl));

@@ -37,6 +37,12 @@ pub const CONTACT_TORQUE_NM: I32F32 = I32F32::lit("0.05");
 /// of the configured R: copper from cold to hot (+40 %, docs/design.md §9). With R off by ΔR
 /// the observer reads ω_g + ΔR·i/k_e.
 pub const RESISTANCE_TOLERANCE: I32F32 = I32F32::lit("0.4");
+/// Lowest armature resistance the current window allows for, as a fraction of the
+/// configured R: copper colder than configured (×0.8, docs/design.md §9). The window about
+/// the back-EMF is (1000/V_s)·R·i wide in duty, and the current it lets through is that
+/// voltage over the true R: with i at most 0.8 of the motor's current rating, a cold motor
+/// stays within the rating (and below the supervisor's over-current trip).
+pub const RESISTANCE_LOW: I32F32 = I32F32::lit("0.8");
 /// Current-sense offset the observer's dead bands allow for, ADC counts (what
 /// calibration leaves, docs/design.md §9); plus 1.5 counts of resolution.
 pub const CURRENT_OFFSET_TOLERANCE_COUNTS: i32 = 20;
@@ -177,6 +183,9 @@ pub struct Schedule {
     /// The current limit in duty, ‰ Q16: `duty_per_amp` applied to `i_lim_q16` (derived
     /// once here, not per tick).
     pub(crate) i_lim_duty_q16: i32,
+    /// Half-width of the current window about the back-EMF, ‰ Q16: the current limit, at
+    /// most `RESISTANCE_LOW` × the motor's current rating, in duty.
+    pub(crate) i_win_duty_q16: i32,
     pub(crate) i_lim_from_beams: bool,
     /// Coupling torque limit τ_lim = margin·τ_cap(L + ΔL) (N·m, Q16).
     pub(crate) tau_lim_q16: i32,
@@ -466,6 +475,10 @@ impl Schedule {
             w_defl_q16: w_defl.apply(Q16_ONE),
             i_lim_q16,
             i_lim_duty_q16: duty_per_amp.apply(i_lim_q16),
+            i_win_duty_q16: to_q16(mul(
+                mul(duty_per_volt, r)?,
+                i_lim.min(mul(wide(lim.max_current_a), wide(RESISTANCE_LOW))?),
+            )?)?,
             i_lim_from_beams,
             tau_lim_q16: to_q16(tau_lim)?,
             clutch_tolerance: lim.clutch_tolerance,
