@@ -41,7 +41,7 @@ use model::control::schedule::{
 };
 use model::control::{dash, Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
-use model::servo::{BridgeDemand, TickInput};
+use model::servo::{brakes_on, BridgeDemand, TickInput};
 use model::supervisor::{Fault, FaultCode, FaultSet, Supervisor};
 use model::{Design, Length, Stiffness};
 
@@ -1167,10 +1167,12 @@ impl FloatServo {
         }
         let bridge = if self.state == FloatServoState::Enabled {
             BridgeDemand::Drive(control.duty)
+        } else if self.state == FloatServoState::Faulted && brakes_on(self.supervisor.latched()) {
+            BridgeDemand::Brake
         } else {
             BridgeDemand::Off
         };
-        self.was_off = bridge == BridgeDemand::Off;
+        self.was_off = !matches!(bridge, BridgeDemand::Drive(_));
         FloatTickOutput {
             tick: self.tick,
             bridge,

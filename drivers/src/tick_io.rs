@@ -8,7 +8,8 @@
 //!   `TickInput::read_error`, so the supervisor sees the failure and the controller never a
 //!   made-up reading;
 //! - the bridge is off whenever the servo says so ([`BridgeDemand::Off`]), and after any
-//!   driver error (counted in [`TickIo::bridge_errors`]).
+//!   driver error (counted in [`TickIo::bridge_errors`]); a brake
+//!   ([`BridgeDemand::Brake`], the fault reaction) never turns on a bridge that is off.
 
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
@@ -84,6 +85,9 @@ where
         let result = match demand {
             BridgeDemand::Off if self.bridge.state() == BridgeState::Disabled => Ok(()),
             BridgeDemand::Off => self.bridge.disable(),
+            // Braking never turns on a bridge that is off (disabled or after an error).
+            BridgeDemand::Brake if self.bridge.state() == BridgeState::Disabled => Ok(()),
+            BridgeDemand::Brake => self.bridge.brake(),
             BridgeDemand::Drive(duty) => {
                 self.bridge.enable();
                 self.bridge.drive(duty)

@@ -157,6 +157,35 @@ fn the_bridge_is_off_when_the_servo_says_so() {
 }
 
 #[test]
+fn a_brake_shorts_a_live_bridge_and_never_turns_on_one_that_is_off() {
+    let mut io = io(
+        [&[], &[], &[]],
+        &[
+            Pwm::set_duty_cycle(0),
+            Pwm::max_duty_cycle(MAX),
+            Pwm::set_duty_cycle(450),
+            // Brake: the PWM to 0, the enable stays high (the low sides short the motor).
+            Pwm::set_duty_cycle(0),
+            // Off: enable low, PWM off.
+            Pwm::set_duty_cycle(0),
+        ],
+        &[Pin::set(State::High)],
+        &[Pin::set(State::High), Pin::set(State::Low)],
+    );
+    io.drive(BridgeDemand::Drive(450));
+    io.drive(BridgeDemand::Brake);
+    assert_eq!(io.bridge.state(), BridgeState::Brake);
+    assert_eq!(io.applied_duty(), 0);
+    io.drive(BridgeDemand::Off);
+    assert_eq!(io.bridge.state(), BridgeState::Disabled);
+    // Off (or after a driver error): a brake writes nothing and the bridge stays off.
+    io.drive(BridgeDemand::Brake);
+    assert_eq!(io.bridge.state(), BridgeState::Disabled);
+    assert_eq!(io.bridge_errors(), 0);
+    done(&io);
+}
+
+#[test]
 fn a_bridge_error_turns_the_bridge_off_and_is_counted() {
     let failure = MockError::Io(std::io::ErrorKind::Other);
     let mut io = io(

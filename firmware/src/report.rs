@@ -307,7 +307,7 @@ mod scenario_log {
             let fault_tick = s.first_fault.map_or(0, |(_, t)| t);
             let passed_scenario = s.passed();
             defmt::println!(
-                "RESULT scenario name={=str} ticks={=u32} hash={=u64:#018x} first_fault={=str} fault_tick={=u32} inject_tick={=u32} condition_tick={=u32} driven_after_fault={=u32} bridge_on_after_fault={=u32} passed={=bool}",
+                "RESULT scenario name={=str} ticks={=u32} hash={=u64:#018x} first_fault={=str} fault_tick={=u32} inject_tick={=u32} condition_tick={=u32} driven_after_fault={=u32} bridge_driving_after_fault={=u32} passed={=bool}",
                 s.id.name(),
                 s.ticks,
                 s.hash,
@@ -316,7 +316,7 @@ mod scenario_log {
                 s.inject_tick.unwrap_or(0),
                 s.condition_tick.unwrap_or(0),
                 s.driven_after_fault,
-                s.lines_on_after_fault,
+                s.lines_driving_after_fault,
                 passed_scenario
             );
             let expected_overruns = u32::from(s.id == ScenarioId::Overrun);

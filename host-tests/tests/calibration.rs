@@ -336,6 +336,7 @@ fn a_calibrated_miswired_build_moves_like_the_nominal_one() {
         let cmd = match o.bridge {
             BridgeDemand::Drive(d) => BridgeCommand::Drive(corrector.duty(d)),
             BridgeDemand::Off => BridgeCommand::Coast,
+            BridgeDemand::Brake => BridgeCommand::Brake,
         };
         plant.step_tick_cmd(cmd);
         let st = plant.state();

@@ -6,12 +6,11 @@
 //! 1 s of the motion's start.
 
 use host_tests::sim;
-use model::servo::{BridgeDemand, Servo, TickInput};
+use model::servo::{Servo, TickInput};
 use model::supervisor::FaultCode;
 use model::Length;
-use plant::harness::{allowable_stress_pa, plant_for, Scenario, OFF_BRIDGE};
+use plant::harness::{allowable_stress_pa, bridge_command, plant_for, Scenario};
 use plant::overrides::Override;
-use plant::BridgeCommand;
 
 /// τ_cap at the configured length, N·m.
 fn capacity_nm(l: i32) -> f64 {
@@ -61,11 +60,7 @@ fn run(sc: &Scenario) -> Run {
                 faults.push((code, i64::from(tick) - i64::from(sc.settle_ticks)));
             }
         }
-        let cmd = match out.bridge {
-            BridgeDemand::Drive(d) => BridgeCommand::Drive(d),
-            BridgeDemand::Off => OFF_BRIDGE,
-        };
-        r = plant.step_tick_cmd(cmd);
+        r = plant.step_tick_cmd(bridge_command(out.bridge));
         if let Some(q) = servo.supervisor().clutch_ratio_q16() {
             ratio = ratio.max(q as f64 / 65536.0);
         }

@@ -7,7 +7,7 @@ use bench::float::{
     FloatServo,
 };
 use model::control::{Command, Config, Measurements};
-use model::servo::{BridgeDemand, Servo, TickInput};
+use model::servo::{Servo, TickInput};
 use model::supervisor::SupervisorConfig;
 use model::{Angle, Design, Frequency, Length};
 use plant::harness::{plant_for, Scenario};
@@ -57,13 +57,6 @@ fn input(r: &plant::SensorReadings) -> TickInput {
     }
 }
 
-fn duty(b: BridgeDemand) -> i16 {
-    match b {
-        BridgeDemand::Drive(x) => x,
-        BridgeDemand::Off => 0,
-    }
-}
-
 /// The bench's closed-loop script (hold, 0.5 rad raw step, 200 ms move back, 2 Hz sine;
 /// 0.3 N·m load) at L = 1 … 5 mm, the fixed-point servo and the f32 port each in its own
 /// closed loop with the simulated actuator: neither faults, the link angles stay within
@@ -97,7 +90,7 @@ fn closed_loops_track_each_other_within_one_encoder_count() {
             let f = fservo.tick(&input(&fr));
             assert_eq!(o.new_fault, None, "L = {mm} mm, tick {tick}");
             assert_eq!(f.new_fault, None, "L = {mm} mm, tick {tick} (f32)");
-            let (d, fd) = (duty(o.bridge), duty(f.bridge));
+            let (d, fd) = (o.bridge.duty(), f.bridge.duty());
             duty_diff += i64::from((d - fd).abs());
             r = plant.step_tick(d);
             fr = fplant.step_tick(fd);

@@ -14,7 +14,7 @@ use crate::control::{
     Measurements, Output,
 };
 use crate::supervisor::{
-    Fault, FaultSet, Readings, Sensor, Supervisor, SupervisorConfig, SupervisorError,
+    Fault, FaultCode, FaultSet, Readings, Sensor, Supervisor, SupervisorConfig, SupervisorError,
 };
 use crate::Design;
 
@@ -36,8 +36,37 @@ pub enum ServoState {
 pub enum BridgeDemand {
     /// Drive with this duty, ‰.
     Drive(i16),
-    /// Output stage off (disabled).
+    /// Output stage off (disabled): the motor free-wheels.
     Off,
+    /// Motor terminals shorted through the bridge's low sides (PWM 0, output stage on):
+    /// dynamic braking, the reaction to a fault of the mechanics or the sensors
+    /// ([`brakes_on`]). Never turns on a bridge that is off.
+    Brake,
+}
+
+impl BridgeDemand {
+    /// The duty the bridge applies, ‰: 0 unless driving.
+    #[must_use]
+    pub const fn duty(self) -> i16 {
+        match self {
+            BridgeDemand::Drive(d) => d,
+            BridgeDemand::Off | BridgeDemand::Brake => 0,
+        }
+    }
+}
+
+/// Whether the servo brakes (rather than coasts) once `faults` are latched: braking
+/// needs a healthy bridge and current path, so an over-current, a current ADC at its
+/// rail or a missed deadline (the firmware's timing) turn the bridge off; any other fault
+/// shorts the motor. Measured on the acceptance grid's trips (docs/design.md §11, "Fault
+/// reaction"): braking cut the link's runaway under load about sevenfold and the beam
+/// stress after the trip in 6 of 7 runs.
+#[must_use]
+pub const fn brakes_on(faults: FaultSet) -> bool {
+    !faults.is_empty()
+        && !faults.contains(FaultCode::OverCurrent)
+        && !faults.contains(FaultCode::AdcOutOfRange)
+        && !faults.contains(FaultCode::DeadlineMissed)
 }
 
 /// Why a servo request was refused.
@@ -421,10 +450,13 @@ impl Servo {
             } else {
                 control.duty
             })
+        } else if self.state == ServoState::Faulted && brakes_on(self.faults()) {
+            BridgeDemand::Brake
         } else {
             BridgeDemand::Off
         };
-        self.was_off = bridge == BridgeDemand::Off;
+        // Braking applies 0 V; off, the observer is told 0 as well (its best guess).
+        self.was_off = !matches!(bridge, BridgeDemand::Drive(_));
         TickOutput {
             tick: self.tick,
             bridge,
@@ -490,6 +522,34 @@ mod tests {
         assert_eq!(s.tick(&QUIET).bridge, BridgeDemand::Off);
         s.enable().unwrap();
         assert!(matches!(s.tick(&QUIET).bridge, BridgeDemand::Drive(_)));
+    }
+
+    #[test]
+    fn a_fault_of_the_mechanics_or_a_sensor_brakes_an_electrical_one_coasts() {
+        // A link encoder that jumps half a turn: a sensor fault, the motor shorted.
+        let mut s = servo();
+        s.enable().unwrap();
+        s.tick(&QUIET);
+        let mut jump = QUIET;
+        jump.link_encoder = 2048;
+        let out = s.tick(&jump);
+        assert_eq!(out.new_fault.unwrap().code, FaultCode::SensorJump);
+        assert_eq!(out.bridge, BridgeDemand::Brake, "braking in the same tick");
+        assert_eq!(s.tick(&jump).bridge, BridgeDemand::Brake);
+        assert_eq!(out.bridge.duty(), 0);
+        // An over-current (1.9 A): free-wheeling, whatever else latches later.
+        let mut s = servo();
+        s.enable().unwrap();
+        s.tick(&QUIET);
+        let mut high = QUIET;
+        high.current_adc = 2048 + 1946;
+        let out = s.tick(&high);
+        assert_eq!(out.new_fault.unwrap().code, FaultCode::OverCurrent);
+        assert_eq!(out.bridge, BridgeDemand::Off);
+        let mut both = high;
+        both.link_encoder = 2048;
+        assert_eq!(s.tick(&both).bridge, BridgeDemand::Off);
+        assert!(!brakes_on(FaultSet(0)), "no fault: nothing to brake for");
     }
 
     #[test]

@@ -506,8 +506,19 @@ pub fn allowable_stress_pa(design: &Design) -> f64 {
     fx32(design.params().allowable_stress.to_bits()) * 1e6
 }
 
-/// What the H-bridge does when the servo turns the motor off (disabled or faulted).
+/// What the H-bridge does when the servo turns the motor off (disabled, or faulted
+/// without braking).
 pub const OFF_BRIDGE: BridgeCommand = BridgeCommand::Coast;
+
+/// The simulated bridge's command for the servo's demand.
+#[must_use]
+pub const fn bridge_command(demand: BridgeDemand) -> BridgeCommand {
+    match demand {
+        BridgeDemand::Drive(d) => BridgeCommand::Drive(d),
+        BridgeDemand::Off => OFF_BRIDGE,
+        BridgeDemand::Brake => BridgeCommand::Brake,
+    }
+}
 
 /// How far the plant's true frame is from the servo's, rad, from the servo's measured link
 /// angle and the true one at the same tick: the sensor-correction layer set the servo's
@@ -605,10 +616,7 @@ where
             let measured = fx32(out.control.link_angle.to_bits());
             rec.on_command(true_angle, fx32(target.to_bits()), measured);
         }
-        let (cmd, duty) = match out.bridge {
-            BridgeDemand::Drive(d) => (BridgeCommand::Drive(d), d),
-            BridgeDemand::Off => (OFF_BRIDGE, 0),
-        };
+        let (cmd, duty) = (bridge_command(out.bridge), out.bridge.duty());
         readings = plant.step_tick_cmd(cmd);
         let st = plant.state();
         let stress = f64::from(st.beam_stress_pa).abs();

@@ -219,6 +219,13 @@ impl BridgeLines {
     pub fn for_demand(demand: BridgeDemand) -> BridgeLines {
         match demand {
             BridgeDemand::Off => BridgeLines::default(),
+            // Enabled at zero duty: the low sides short the motor (the simulated bridge's
+            // 0 V, `BridgeCommand::Drive(0)`).
+            BridgeDemand::Brake => BridgeLines {
+                enabled: true,
+                forward: false,
+                duty_permille: 0,
+            },
             BridgeDemand::Drive(d) => BridgeLines {
                 enabled: true,
                 forward: d > 0,
@@ -433,8 +440,9 @@ pub struct Summary {
     pub condition_tick: Option<u32>,
     /// Ticks after the first fault in which the servo demanded drive.
     pub driven_after_fault: u32,
-    /// Ticks after the first fault in which the bridge lines were enabled.
-    pub lines_on_after_fault: u32,
+    /// Ticks after the first fault in which the bridge lines drove the motor (enabled
+    /// with a duty; a brake, enabled at zero duty, puts no energy in).
+    pub lines_driving_after_fault: u32,
 }
 
 impl Summary {
@@ -451,7 +459,7 @@ impl Summary {
                         && t >= inj
                         && t <= cond.saturating_add(2)
                         && self.driven_after_fault == 0
-                        && self.lines_on_after_fault == 0
+                        && self.lines_driving_after_fault == 0
                 }
                 _ => false,
             },
@@ -499,7 +507,7 @@ pub struct ScenarioRun {
     inject_tick: Option<u32>,
     condition_tick: Option<u32>,
     driven_after_fault: u32,
-    lines_on_after_fault: u32,
+    lines_driving_after_fault: u32,
     results: [Option<Metrics>; 5],
     events: Deque<ScenarioEvent, 8>,
     done: bool,
@@ -561,7 +569,7 @@ impl ScenarioRun {
             inject_tick: None,
             condition_tick: None,
             driven_after_fault: 0,
-            lines_on_after_fault: 0,
+            lines_driving_after_fault: 0,
             results: [None; 5],
             events: Deque::new(),
             done: false,
@@ -799,6 +807,7 @@ impl ScenarioRun {
         let demand = match out.bridge {
             BridgeDemand::Drive(d) => d,
             BridgeDemand::Off => i16::MIN,
+            BridgeDemand::Brake => i16::MIN + 1,
         };
         h = fnv1a64(h, &demand.to_le_bytes());
         let state = match servo.state() {
@@ -820,19 +829,16 @@ impl ScenarioRun {
                 // An overrun is found after the tick's output was applied: that tick's
                 // demand stands, but the lines must be off by the end of the tick.
                 let found_late = out.tick == fault_tick && out.new_fault.is_none();
-                if !found_late && out.bridge != BridgeDemand::Off {
+                if !found_late && matches!(out.bridge, BridgeDemand::Drive(_)) {
                     self.driven_after_fault += 1;
                 }
-                if lines.enabled {
-                    self.lines_on_after_fault += 1;
+                if lines.enabled && lines.duty_permille != 0 {
+                    self.lines_driving_after_fault += 1;
                 }
             }
         }
 
-        let applied = match out.bridge {
-            BridgeDemand::Drive(d) => d,
-            BridgeDemand::Off => 0,
-        };
+        let applied = out.bridge.duty();
         if self.seg_tick == seg.hold_ticks {
             if let Some(rec) = self.recorder.as_mut() {
                 let true_angle = self.plant.state().link_angle_rad;
@@ -882,7 +888,7 @@ impl ScenarioRun {
             inject_tick: self.inject_tick,
             condition_tick: self.condition_tick,
             driven_after_fault: self.driven_after_fault,
-            lines_on_after_fault: self.lines_on_after_fault,
+            lines_driving_after_fault: self.lines_driving_after_fault,
         }
     }
 }

@@ -29,7 +29,7 @@ fn every_scenario_passes_on_the_host_and_repeats_bit_for_bit() {
             s.inject_tick,
             s.condition_tick,
             s.driven_after_fault,
-            s.lines_on_after_fault
+            s.lines_driving_after_fault
         );
         assert!(s.passed(), "{}: {s:?}\n{}", id.name(), log.join("\n"));
         if id == ScenarioId::StepSweep {

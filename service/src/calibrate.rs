@@ -114,10 +114,7 @@ impl Actuator {
         // The raw readings for `vsa sensors` (no nudge runs: the start refused it).
         let _ = self.open_loop.demand(raw, &out);
         let demand = self.calibration.step(raw, &out);
-        self.open_loop.note_duty(match demand {
-            BridgeDemand::Drive(d) => d,
-            BridgeDemand::Off => 0,
-        });
+        self.open_loop.note_duty(demand.duty());
         (out, demand)
     }
 }

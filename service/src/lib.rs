@@ -26,7 +26,7 @@
 use model::calibration::pipeline::Pipeline;
 use model::control::{ClutchSetting, Command, Config, PidGains};
 use model::sensors::POT_COUNT_Q32;
-use model::servo::{BridgeDemand, Prepared, Servo, ServoError, ServoState, TickInput, TickOutput};
+use model::servo::{Prepared, Servo, ServoError, ServoState, TickInput, TickOutput};
 use model::supervisor::{FaultCode as ModelFaultCode, SupervisorConfig};
 use model::{Angle, Design, Frequency, Length, Ratio, Stiffness, Torque};
 use protocol::{
@@ -353,10 +353,7 @@ impl Actuator {
             current_ma: q32_to_milli(c.current.to_bits()).clamp(i16::MIN.into(), i16::MAX.into())
                 as i16,
             torque_unm: q32_to_micro(c.torque_estimate.to_bits()),
-            duty_permille: match out.bridge {
-                BridgeDemand::Drive(d) => d,
-                BridgeDemand::Off => 0,
-            },
+            duty_permille: out.bridge.duty(),
             faults: wire_faults(&self.servo),
             limits: self.limits,
         }

@@ -116,10 +116,10 @@ fn scenario_failures(id: ScenarioId, outcome: &RunOutcome, host: &Summary, f: &m
                             s.fault.1, s.condition_tick
                         ));
                     }
-                    if s.driven_after_fault != 0 || s.bridge_on_after_fault != 0 {
+                    if s.driven_after_fault != 0 || s.bridge_driving_after_fault != 0 {
                         f.push(format!(
-                            "motor not off after the fault: driven {} ticks, bridge enabled {} ticks",
-                            s.driven_after_fault, s.bridge_on_after_fault
+                            "motor driven after the fault: demanded {} ticks, bridge driving {} ticks",
+                            s.driven_after_fault, s.bridge_driving_after_fault
                         ));
                     }
                     // The expected fault as the log task reported it: once, with its code

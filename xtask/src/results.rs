@@ -9,7 +9,7 @@
 //! |---|---|---|
 //! | `setting` | `index clutch_mm stiffness_nm_per_rad torque_capacity_nm from_tick` | `vsa-firmware`, as each clutch setting of its scenario starts (`report.rs`) |
 //! | `segment` | `index clutch_mm overshoot_pct rise_s settling_s steady_state_error_counts peak_stress_mpa peak_stress_ratio rms_error_rad torque_limited hash` | `vsa-firmware`, as each setting ends (`report.rs`) |
-//! | `scenario` | `name ticks hash first_fault fault_tick inject_tick condition_tick driven_after_fault bridge_on_after_fault passed` | `vsa-firmware`, when its scenario ends (`report.rs`) |
+//! | `scenario` | `name ticks hash first_fault fault_tick inject_tick condition_tick driven_after_fault bridge_driving_after_fault passed` | `vsa-firmware`, when its scenario ends (`report.rs`) |
 //! | `timing` | `seconds min_ticks max_ticks overruns expected_overruns dropped passed` | `vsa-firmware`, at the end of a run (`report.rs`) |
 //! | `control_step` | `insns_mean insns_max hooks_insns_mean icount_shift` | `vsa-firmware`, when its scenario ends (`report.rs`) |
 //! | `fault` | `name code value tick` | `vsa-firmware` on an emulated board, each fault latched (`report.rs`) |

@@ -65,7 +65,7 @@ pub struct BoardSummary {
     /// Ticks driven after the fault.
     pub driven_after_fault: u32,
     /// Ticks with the bridge enabled after the fault.
-    pub bridge_on_after_fault: u32,
+    pub bridge_driving_after_fault: u32,
     /// The firmware's own verdict on the scenario.
     pub passed: bool,
 }
@@ -80,7 +80,7 @@ impl BoardSummary {
             inject_tick: r.get("inject_tick")?,
             condition_tick: r.get("condition_tick")?,
             driven_after_fault: r.get("driven_after_fault")?,
-            bridge_on_after_fault: r.get("bridge_on_after_fault")?,
+            bridge_driving_after_fault: r.get("bridge_driving_after_fault")?,
             passed: r.get("passed")?,
         })
     }
@@ -98,13 +98,13 @@ mod tests {
 
     #[test]
     fn the_scenario_record_reads() {
-        let line = "  0.6 PRINT RESULT scenario name=fault-overrun ticks=1100 hash=0x61923127aaaa1bdf first_fault=deadline-missed fault_tick=300 inject_tick=300 condition_tick=300 driven_after_fault=0 bridge_on_after_fault=0 passed=true  (firmware/src/report.rs:1)";
+        let line = "  0.6 PRINT RESULT scenario name=fault-overrun ticks=1100 hash=0x61923127aaaa1bdf first_fault=deadline-missed fault_tick=300 inject_tick=300 condition_tick=300 driven_after_fault=0 bridge_driving_after_fault=0 passed=true  (firmware/src/report.rs:1)";
         let s = BoardSummary::from_record(&Record::parse(line).unwrap()).unwrap();
         assert_eq!(s.name, "fault-overrun");
         assert_eq!(s.hash, 0x6192_3127_aaaa_1bdf);
         assert_eq!(s.fault, ("deadline-missed".to_owned(), 300));
         assert_eq!((s.inject_tick, s.condition_tick), (300, 300));
-        assert_eq!((s.driven_after_fault, s.bridge_on_after_fault), (0, 0));
+        assert_eq!((s.driven_after_fault, s.bridge_driving_after_fault), (0, 0));
         assert!(s.passed);
         let lines = vec![
             "x PRINT RESULT control_step insns_mean=812 insns_max=1430 hooks_insns_mean=9000 icount_shift=3".to_owned(),
