@@ -130,7 +130,7 @@ fn before_any_good_read_the_servo_sees_the_actuator_at_rest() {
 }
 
 #[test]
-fn the_bridge_is_off_when_the_servo_says_so() {
+fn the_bridge_is_off_when_the_servo_says_so_and_brakes_only_while_on() {
     let mut io = io(
         [&[], &[], &[]],
         &[
@@ -138,6 +138,8 @@ fn the_bridge_is_off_when_the_servo_says_so() {
             Pwm::set_duty_cycle(0),
             Pwm::max_duty_cycle(MAX),
             Pwm::set_duty_cycle(450),
+            // Brake: the PWM to 0, the enable stays high (the low sides short the motor).
+            Pwm::set_duty_cycle(0),
             // Off: enable low first, then the PWM off.
             Pwm::set_duty_cycle(0),
         ],
@@ -147,38 +149,14 @@ fn the_bridge_is_off_when_the_servo_says_so() {
     io.drive(BridgeDemand::Drive(450));
     assert_eq!(io.bridge.state(), BridgeState::Drive(450));
     assert_eq!(io.applied_duty(), 450);
-    io.drive(BridgeDemand::Off);
-    assert_eq!(io.bridge.state(), BridgeState::Disabled);
-    assert_eq!(io.applied_duty(), 0);
-    // Already off: nothing more is written.
-    io.drive(BridgeDemand::Off);
-    assert_eq!(io.bridge_errors(), 0);
-    done(&io);
-}
-
-#[test]
-fn a_brake_shorts_a_live_bridge_and_never_turns_on_one_that_is_off() {
-    let mut io = io(
-        [&[], &[], &[]],
-        &[
-            Pwm::set_duty_cycle(0),
-            Pwm::max_duty_cycle(MAX),
-            Pwm::set_duty_cycle(450),
-            // Brake: the PWM to 0, the enable stays high (the low sides short the motor).
-            Pwm::set_duty_cycle(0),
-            // Off: enable low, PWM off.
-            Pwm::set_duty_cycle(0),
-        ],
-        &[Pin::set(State::High)],
-        &[Pin::set(State::High), Pin::set(State::Low)],
-    );
-    io.drive(BridgeDemand::Drive(450));
     io.drive(BridgeDemand::Brake);
     assert_eq!(io.bridge.state(), BridgeState::Brake);
     assert_eq!(io.applied_duty(), 0);
     io.drive(BridgeDemand::Off);
     assert_eq!(io.bridge.state(), BridgeState::Disabled);
-    // Off (or after a driver error): a brake writes nothing and the bridge stays off.
+    assert_eq!(io.applied_duty(), 0);
+    // Already off: nothing more is written, and a brake does not turn the bridge on.
+    io.drive(BridgeDemand::Off);
     io.drive(BridgeDemand::Brake);
     assert_eq!(io.bridge.state(), BridgeState::Disabled);
     assert_eq!(io.bridge_errors(), 0);
