@@ -12,8 +12,9 @@
 //!   converted at its centre). The coupling torque at rest equals −τ_ext. The fit is linear
 //!   least squares of the deflection on the torque, φ = τ/k + sign(τ)·φ_b + φ_0 (compliance,
 //!   free play, offset), which is the slope beyond the free play.
-//! * `fig9_step_responses`: the harness's step scenario (0.5 rad raw step, no load, 0.1 s
-//!   hold) at L = 1…5 mm; the link angle minus its start, over the step size, filtered by a
+//! * `fig9_step_responses`: the harness's step scenario (0.5 rad raw step, 0.5 s hold) at
+//!   L = 1…5 mm, without load and against a constant 0.3 N·m ([`FIG9_LOAD_NM`]); the link
+//!   angle minus its start, over the target minus that start, filtered by a
 //!   2nd-order Butterworth low pass at 4 Hz (bilinear transform with pre-warping at the
 //!   1 kHz tick, f64 on the host, started at rest at the initial value), t = 0…1 s.
 
@@ -262,67 +263,88 @@ pub fn butterworth(xs: &[f64], fc: f64, dt: f64, x0: f64) -> Vec<f64> {
         .collect()
 }
 
-/// The normalised, filtered step response at `len`: (t, y) for t in (0, 1] s.
-pub fn step_response(d: &Design, len: Length) -> Result<Vec<(f64, f64)>, String> {
+/// The constant load of Fig. 9's second panel, N·m: against the step (the link is pushed
+/// back towards its start), as in the closed-loop tests.
+pub const FIG9_LOAD_NM: f64 = -0.3;
+
+/// The normalised, filtered step response at `len` with a constant `load_nm` on the link:
+/// (t, y) for t in (0, 1] s.
+pub fn step_response(d: &Design, len: Length, load_nm: f64) -> Result<Vec<(f64, f64)>, String> {
     let target = Angle::from_micro((STEP_RAD * 1e6) as i64).map_err(err("angle"))?;
     let mut sc = Scenario::new(Config::paper(len), Command::Step { target });
     sc.design = *d;
-    sc.settle_ticks = 100;
+    sc.load_nm = load_nm as f32;
+    // Held 0.5 s first, so that a load has been taken up before the step (as in the
+    // closed-loop tests); normalised by the step from where the link starts to the
+    // target, both in the plant's true frame.
+    sc.settle_ticks = 500;
     sc.run_ticks = 1000;
-    let (mut t, mut y) = (Vec::new(), Vec::new());
-    let mut start = None;
-    harness::run(&sc, |s| {
+    let (mut t, mut theta) = (Vec::new(), Vec::new());
+    let m = harness::run(&sc, |s| {
         if s.t_s > 0.0 {
-            let a0 = *start.get_or_insert(s.link_angle_rad);
             t.push(s.t_s);
-            y.push((s.link_angle_rad - a0) / STEP_RAD);
+            theta.push(s.link_angle_rad);
         }
     })
     .map_err(err("controller"))?;
+    let a0 = theta.first().copied().unwrap_or(0.0);
+    let y: Vec<f64> = theta
+        .iter()
+        .map(|a| (a - a0) / (m.target_rad - a0))
+        .collect();
     let yf = butterworth(&y, CUTOFF_HZ, 1e-3, 0.0);
     Ok(t.into_iter().zip(yf).collect())
 }
 
-/// Fig. 9: normalised step responses at the five settings.
+/// Fig. 9: normalised step responses at the five settings, without load and against
+/// [`FIG9_LOAD_NM`].
 pub fn fig9_step_responses(d: &Design) -> Result<(Figure, Csv), String> {
+    let loads = [(0.0, ""), (FIG9_LOAD_NM, "_loaded")];
     let mut header = String::from("t_s");
-    for l in SETTINGS {
-        header.push_str(&format!(",y_L{l}mm"));
+    for (_, suffix) in loads {
+        for l in SETTINGS {
+            header.push_str(&format!(",y_L{l}mm{suffix}"));
+        }
     }
     let mut csv = Csv::new(header);
     let mut curves = Vec::new();
-    for l in SETTINGS {
-        curves.push(step_response(d, Length::from_int(l))?);
+    for (load, _) in loads {
+        for l in SETTINGS {
+            curves.push(step_response(d, Length::from_int(l), load)?);
+        }
     }
     for i in 0..curves[0].len() {
         let mut row = vec![format!("{:.3}", curves[0][i].0)];
         row.extend(curves.iter().map(|cv| c(cv[i].1)));
         csv.push(&row);
     }
-    let series = curves
-        .into_iter()
-        .zip(SETTINGS)
-        .enumerate()
-        .map(|(i, (pts, l))| {
-            let k = d
-                .stiffness(Length::from_int(l))
-                .map_or(f64::NAN, |k| k.get().to_num::<f64>());
-            Series {
-                label: Some(format!("L = {l} mm (k = {} N·m/rad)", trim(k.round()))),
-                points: pts,
-                color: COLORS[i],
-                dashed: false,
-                marker: false,
-            }
-        })
-        .collect();
-    let fig = Figure {
-        title: format!(
-            "Fig. 9 — normalised step responses, {STEP_RAD} rad raw step, no load, J = 1e-3 kg·m²"
-        ),
-        panels: vec![Panel {
+    let mut panels = Vec::new();
+    let captions = [
+        "no load".to_string(),
+        format!("{} N·m against the step", trim(FIG9_LOAD_NM.abs())),
+    ];
+    let mut curves = curves.into_iter();
+    for caption in captions {
+        let series = SETTINGS
+            .into_iter()
+            .zip(curves.by_ref())
+            .enumerate()
+            .map(|(i, (l, pts))| {
+                let k = d
+                    .stiffness(Length::from_int(l))
+                    .map_or(f64::NAN, |k| k.get().to_num::<f64>());
+                Series {
+                    label: Some(format!("L = {l} mm (k = {} N·m/rad)", trim(k.round()))),
+                    points: pts,
+                    color: COLORS[i],
+                    dashed: false,
+                    marker: false,
+                }
+            })
+            .collect();
+        panels.push(Panel {
             caption: format!(
-                "link angle / step, 2nd-order Butterworth low pass at {} Hz",
+                "{caption}: link angle / step, 2nd-order Butterworth low pass at {} Hz",
                 trim(CUTOFF_HZ)
             ),
             x_label: "time after the command t (s)".into(),
@@ -333,8 +355,14 @@ pub fn fig9_step_responses(d: &Design) -> Result<(Figure, Csv), String> {
             x_margin: 0.0,
             series,
             legend: SeriesLabelPosition::LowerRight,
-        }],
-        size: (1000, 700),
+        });
+    }
+    let fig = Figure {
+        title: format!(
+            "Fig. 9 — normalised step responses, {STEP_RAD} rad raw step, J = 1e-3 kg·m²"
+        ),
+        panels,
+        size: (1600, 700),
     };
     Ok((fig, csv))
 }
