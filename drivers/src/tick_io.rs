@@ -83,10 +83,14 @@ where
     /// Puts the servo's demand on the H-bridge; a driver error turns the bridge off.
     pub fn drive(&mut self, demand: BridgeDemand) {
         let result = match demand {
-            BridgeDemand::Off if self.bridge.state() == BridgeState::Disabled => Ok(()),
+            // Already off, nothing to write; and braking never turns on a bridge that is
+            // off (disabled, or after a driver error).
+            BridgeDemand::Off | BridgeDemand::Brake
+                if self.bridge.state() == BridgeState::Disabled =>
+            {
+                Ok(())
+            }
             BridgeDemand::Off => self.bridge.disable(),
-            // Braking never turns on a bridge that is off (disabled or after an error).
-            BridgeDemand::Brake if self.bridge.state() == BridgeState::Disabled => Ok(()),
             BridgeDemand::Brake => self.bridge.brake(),
             BridgeDemand::Drive(duty) => {
                 self.bridge.enable();

@@ -377,9 +377,11 @@ impl Schedule {
         let free_play = wide(setting.free_play().get());
         let w_defl = to_gain(w_defl)?;
         let i_lim_q16 = to_q16(i_lim)?;
-        let duty_per_amp = to_gain(mul(duty_per_volt, r)?)?;
+        // ‰ of duty per ampere through R (the current limit, the window, R·J/k_t).
+        let duty_per_amp_wide = mul(duty_per_volt, r)?;
+        let duty_per_amp = to_gain(duty_per_amp_wide)?;
         let ff_vel = mul(duty_per_volt, add(ke, div(mul(r, bv)?, kt)?)?)?;
-        let ff_acc = div(mul(mul(duty_per_volt, r)?, p.j)?, kt)?;
+        let ff_acc = div(mul(duty_per_amp_wide, p.j)?, kt)?;
         // τ_c → duty as for the loads below: ÷ (k_t/R), × 1000/V_s.
         let coulomb_duty = mul(
             div(wide(cfg.motor.coulomb), p.torque_per_volt)?,
@@ -476,7 +478,7 @@ impl Schedule {
             i_lim_q16,
             i_lim_duty_q16: duty_per_amp.apply(i_lim_q16),
             i_win_duty_q16: to_q16(mul(
-                mul(duty_per_volt, r)?,
+                duty_per_amp_wide,
                 i_lim.min(mul(wide(lim.max_current_a), wide(RESISTANCE_LOW))?),
             )?)?,
             i_lim_from_beams,
