@@ -555,7 +555,7 @@ impl Client {
     /// [`Request::Enable`]: motor on, holding the current position (refused while a fault
     /// is latched). A board that answers `busy` (its boot window: the encoder is being
     /// aligned to the pot with the motor off, docs/calibration.md) is asked again for up
-    /// to [`ENABLE_BUSY_WAIT`] ([`Client::request_while_busy`]).
+    /// to `ENABLE_BUSY_WAIT` ([`Client::request_while_busy`]).
     ///
     /// # Errors
     /// As [`Client::ping`]; the last refusal if the board is still busy after the wait (a

@@ -4,7 +4,7 @@
 //!
 //! `USARTDIV = f_PCLK / (8 · (2 − OVER8) · baud)`. At 16× oversampling (OVER8 = 0) BRR
 //! holds USARTDIV in 12.4 fixed point, i.e. `BRR = f_PCLK / baud`, at least 16; at 8×
-//! (OVER8 = 1) the fraction has 3 bits (BRR[3] = 0): `D = f_PCLK · 2 / (16 · baud)` in
+//! (OVER8 = 1) the fraction has 3 bits (`BRR[3]` = 0): `D = f_PCLK · 2 / (16 · baud)` in
 //! 12.3 fixed point, BRR = (D >> 3) << 4 | (D & 7), at least 8. 8× reaches twice the rate
 //! but tolerates less clock error at the receiver (RM0390 §25.4.5: 3.75 % vs 3.43 % with
 //! one sample per bit, both sides' errors together), so 16× is preferred on a tie.

@@ -60,71 +60,7 @@ pub const RESTART_GRACE_TICKS: u16 = 8;
 /// One radian as I32F32 bits.
 const Q32_ONE: i64 = 1 << 32;
 
-/// What went wrong. The discriminant is the code logged and sent to the host.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[repr(u8)]
-pub enum FaultCode {
-    /// A sensor driver returned an error.
-    SensorRead = 1,
-    /// The current ADC reads at a rail.
-    AdcOutOfRange = 2,
-    /// The motor current exceeds the trip level.
-    OverCurrent = 3,
-    /// A sensor reading changed more than the physics allows in one tick.
-    SensorJump = 4,
-    /// The link encoder is frozen while the gear moves on.
-    SensorStuck = 5,
-    /// The beams carry more than their stress-limited capacity.
-    BeamOverload = 6,
-    /// The link is outside its position window.
-    PositionLimit = 7,
-    /// A control period overran its deadline.
-    DeadlineMissed = 8,
-    /// No heartbeat from the host for the timeout.
-    CommandTimeout = 9,
-    /// The beams are softer than configured: the clutch is longer than the host said.
-    ClutchMismatch = 10,
-}
-
-impl FaultCode {
-    /// Every code, in check order.
-    pub const ALL: [FaultCode; 10] = [
-        FaultCode::SensorRead,
-        FaultCode::AdcOutOfRange,
-        FaultCode::OverCurrent,
-        FaultCode::SensorJump,
-        FaultCode::SensorStuck,
-        FaultCode::BeamOverload,
-        FaultCode::PositionLimit,
-        FaultCode::DeadlineMissed,
-        FaultCode::CommandTimeout,
-        FaultCode::ClutchMismatch,
-    ];
-
-    /// Short name, as logged (`over-current`, …).
-    #[must_use]
-    pub const fn name(self) -> &'static str {
-        match self {
-            FaultCode::SensorRead => "sensor-read",
-            FaultCode::AdcOutOfRange => "adc-out-of-range",
-            FaultCode::OverCurrent => "over-current",
-            FaultCode::SensorJump => "sensor-jump",
-            FaultCode::SensorStuck => "sensor-stuck",
-            FaultCode::BeamOverload => "beam-overload",
-            FaultCode::PositionLimit => "position-limit",
-            FaultCode::DeadlineMissed => "deadline-missed",
-            FaultCode::CommandTimeout => "command-timeout",
-            FaultCode::ClutchMismatch => "clutch-mismatch",
-        }
-    }
-
-    /// The code's bit in a [`FaultSet`].
-    #[must_use]
-    pub const fn bit(self) -> u16 {
-        1 << (self as u8)
-    }
-}
+pub use fault::{FaultCode, FaultSet};
 
 /// Which sensor a [`FaultCode::SensorRead`] or [`FaultCode::SensorJump`] is about.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -150,25 +86,6 @@ pub struct Fault {
     pub value: i32,
     /// The control tick (1-based count of ticks since start).
     pub tick: u32,
-}
-
-/// A set of fault codes (bit `code` set when latched).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct FaultSet(pub u16);
-
-impl FaultSet {
-    /// Whether `code` is in the set.
-    #[must_use]
-    pub const fn contains(self, code: FaultCode) -> bool {
-        self.0 & code.bit() != 0
-    }
-
-    /// No fault.
-    #[must_use]
-    pub const fn is_empty(self) -> bool {
-        self.0 == 0
-    }
 }
 
 /// Supervisor settings in engineering units (validated by [`Supervisor::new`]).

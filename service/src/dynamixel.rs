@@ -13,14 +13,14 @@
 //! ([`dynamixel::device::hardware`]): beam overload and over-current as overload
 //! (over-current also as electrical shock), sensor faults as sensor.
 
-use crate::{q32_to_micro, stiffness_mnm, wire_faults, Actuator, Service, ServiceDevice};
+use crate::{q32_to_micro, stiffness_mnm, Actuator, Service, ServiceDevice};
 use dynamixel::device::hardware;
 use dynamixel::table::calibration;
 use dynamixel::{Backend, Field, Keep, MemoryBackend, Output, Port, Protocol, Refusal};
 use model::control::trajectory::MIN_MOVE_MS;
 use model::control::{ClutchSetting, Config};
 use model::servo::{Prepared, ServoState};
-use model::supervisor::FaultCode as ModelFaultCode;
+use model::supervisor::FaultCode;
 use model::{Length, Stiffness};
 use protocol::{Device as _, MOVE_DURATION_MAX_MS};
 use rtic_core::Mutex;
@@ -463,7 +463,7 @@ impl<M: Mutex<T = Actuator>> Backend for ServoBackend<'_, '_, M> {
                     .unwrap_or(i32::MAX)
             }),
             Field::BeamCapacity => i32::try_from(self.capacity_unm()).unwrap_or(i32::MAX),
-            Field::Faults => i32::from(self.dev.actuator.lock(|a| wire_faults(&a.servo).0)),
+            Field::Faults => i32::from(self.dev.actuator.lock(|a| a.servo.faults().0)),
             f => self.regs.store.get(f),
         }
     }
@@ -591,17 +591,17 @@ impl<M: Mutex<T = Actuator>> Backend for ServoBackend<'_, '_, M> {
     fn hardware_errors(&mut self) -> u8 {
         let faults = self.dev.actuator.lock(|a| a.servo.faults());
         let mut bits = 0;
-        for code in ModelFaultCode::ALL {
+        for code in FaultCode::ALL {
             if !faults.contains(code) {
                 continue;
             }
             bits |= match code {
-                ModelFaultCode::BeamOverload => hardware::OVERLOAD,
-                ModelFaultCode::OverCurrent => hardware::OVERLOAD | hardware::ELECTRICAL_SHOCK,
-                ModelFaultCode::SensorRead
-                | ModelFaultCode::AdcOutOfRange
-                | ModelFaultCode::SensorJump
-                | ModelFaultCode::SensorStuck => hardware::SENSOR,
+                FaultCode::BeamOverload => hardware::OVERLOAD,
+                FaultCode::OverCurrent => hardware::OVERLOAD | hardware::ELECTRICAL_SHOCK,
+                FaultCode::SensorRead
+                | FaultCode::AdcOutOfRange
+                | FaultCode::SensorJump
+                | FaultCode::SensorStuck => hardware::SENSOR,
                 _ => 0,
             };
         }

@@ -27,11 +27,11 @@ use model::calibration::pipeline::Pipeline;
 use model::control::{ClutchSetting, Command, Config, PidGains};
 use model::sensors::POT_COUNT_Q32;
 use model::servo::{Prepared, Servo, ServoError, ServoState, TickInput, TickOutput};
-use model::supervisor::{FaultCode as ModelFaultCode, SupervisorConfig};
+use model::supervisor::SupervisorConfig;
 use model::{Angle, Design, Frequency, Length, Ratio, Stiffness, Torque};
 use protocol::{
-    Device, ErrorCode, FaultCode, FaultRecord, FaultSet, Gains, LimitFlags, Limits, LoggedFault,
-    State, Status, TelemetrySample,
+    Device, ErrorCode, FaultRecord, Gains, LimitFlags, Limits, LoggedFault, State, Status,
+    TelemetrySample,
 };
 use rtic_core::Mutex;
 
@@ -144,33 +144,6 @@ pub const fn milli_to_q32(v: i64) -> i64 {
 pub fn stiffness_mnm(k: Stiffness) -> u32 {
     let mnm = (k.to_bits().saturating_mul(1_000) + (1 << 63)) >> 64;
     u32::try_from(mnm.max(0)).unwrap_or(u32::MAX)
-}
-
-/// A model fault code on the wire (same numbering; checked by the tests).
-#[must_use]
-pub const fn wire_fault_code(code: ModelFaultCode) -> FaultCode {
-    match code {
-        ModelFaultCode::SensorRead => FaultCode::SensorRead,
-        ModelFaultCode::AdcOutOfRange => FaultCode::AdcOutOfRange,
-        ModelFaultCode::OverCurrent => FaultCode::OverCurrent,
-        ModelFaultCode::SensorJump => FaultCode::SensorJump,
-        ModelFaultCode::SensorStuck => FaultCode::SensorStuck,
-        ModelFaultCode::BeamOverload => FaultCode::BeamOverload,
-        ModelFaultCode::PositionLimit => FaultCode::PositionLimit,
-        ModelFaultCode::DeadlineMissed => FaultCode::DeadlineMissed,
-        ModelFaultCode::CommandTimeout => FaultCode::CommandTimeout,
-        ModelFaultCode::ClutchMismatch => FaultCode::ClutchMismatch,
-    }
-}
-
-/// The latched faults of `servo` on the wire.
-#[must_use]
-pub fn wire_faults(servo: &Servo) -> FaultSet {
-    let latched = servo.faults();
-    ModelFaultCode::ALL
-        .iter()
-        .filter(|c| latched.contains(**c))
-        .fold(FaultSet::EMPTY, |set, c| set.with(wire_fault_code(*c)))
 }
 
 /// The live-limit flags of a controller output on the wire.
@@ -354,7 +327,7 @@ impl Actuator {
                 as i16,
             torque_unm: q32_to_micro(c.torque_estimate.to_bits()),
             duty_permille: out.bridge.duty(),
-            faults: wire_faults(&self.servo),
+            faults: self.servo.faults(),
             limits: self.limits,
         }
     }
@@ -370,9 +343,9 @@ impl Actuator {
                 ServoState::Enabled => State::Enabled,
                 ServoState::Faulted => State::Faulted,
             },
-            faults: wire_faults(servo),
+            faults: servo.faults(),
             first_fault: servo.supervisor().first_fault().map(|f| FaultRecord {
-                code: wire_fault_code(f.code),
+                code: f.code,
                 value: f.value,
                 tick: f.tick,
             }),
@@ -632,7 +605,7 @@ impl<M: Mutex<T = Actuator>> Device for ServiceDevice<'_, M> {
                 return None;
             }
             servo.supervisor().condition().map(|f| FaultRecord {
-                code: wire_fault_code(f.code),
+                code: f.code,
                 value: f.value,
                 tick: f.tick,
             })

@@ -4,7 +4,7 @@
 //! The firmware runs it in its `serial` task, below the control tick and the receive
 //! interrupt, over the UART's transmitter (any [`embedded_io::Write`]). Every
 //! decoder result goes through [`protocol::Handler`]: bad frames and out-of-range requests
-//! change nothing but its error counters; good requests reach [`service::ServiceDevice`],
+//! change nothing but its error counters; good requests reach [`crate::ServiceDevice`],
 //! which prepares configurations here and applies each command to the shared actuator
 //! under a lock, i.e. between two control ticks. Telemetry is sent only when no received
 //! byte is waiting, so replies go first; the control tick never waits for the link (a full

@@ -22,7 +22,7 @@
 //! replace the rigid gains while the sine runs: no per-tick cost, the same two multiplies.
 //! At the coupling resonance ω² = k·(1/J_g + 1/J_l), J_g·g + J_l = 0 and K_a = 0: the motor
 //! supplies only the losses. Computed when the sine is commanded and when the configuration
-//! changes (divisions in I64F64, [`super::wide`]); any other command uses the rigid gains.
+//! changes (divisions in I64F64, `super::wide`); any other command uses the rigid gains.
 
 use fixed::types::I64F64;
 

@@ -47,7 +47,7 @@ pub enum Command {
     /// Hold the current reference position (velocity and acceleration drop to 0).
     Hold,
     /// Raw step to `target` (absolute link angle) as fast as the actuator allows: through
-    /// [`Trajectory::step`] a profile planned from the limits ([`super::dash`]); through
+    /// `Trajectory::step` a profile planned from the limits ([`super::dash`]); through
     /// [`Trajectory::command`] alone the reference jumps.
     Step {
         /// Absolute link angle, rad.
