@@ -64,7 +64,8 @@ pub struct BoardSummary {
     pub condition_tick: u32,
     /// Ticks driven after the fault.
     pub driven_after_fault: u32,
-    /// Ticks with the bridge enabled after the fault.
+    /// Ticks after the fault in which the bridge drove the motor (enabled with a duty; a
+    /// brake, enabled at zero duty, does not count).
     pub bridge_driving_after_fault: u32,
     /// The firmware's own verdict on the scenario.
     pub passed: bool,
