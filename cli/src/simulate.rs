@@ -50,10 +50,11 @@ pub struct SimulateArgs {
     /// beams' capacity at that longer length.
     #[arg(long, value_name = "LENGTH", default_value = "0mm")]
     pub clutch_tolerance: String,
-    /// Run the clutch monitor (stiffness estimate, `clutch-mismatch`); needs a clutch
-    /// tolerance above 0.
+    /// Do not run the clutch monitor (stiffness estimate, `clutch-mismatch`), which runs
+    /// whenever the clutch tolerance is above 0: the overload check keeps the tolerance's
+    /// weak capacity.
     #[arg(long)]
-    pub clutch_monitor: bool,
+    pub no_clutch_monitor: bool,
     /// Link inertia, kg·m² (e.g. `1e-3`; a `kgm2` / `kg·m²` suffix is accepted).
     #[arg(long, value_name = "KG_M2", default_value = "1e-3")]
     pub inertia: String,
@@ -229,9 +230,6 @@ fn config(args: &SimulateArgs) -> Result<Config, String> {
     }
     cfg.limits.clutch_tolerance = Length::from_micro(micro(tol, "--clutch-tolerance")?)
         .map_err(|e| format!("--clutch-tolerance: {e}"))?;
-    if args.clutch_monitor && tol == 0.0 {
-        return Err("--clutch-monitor needs a --clutch-tolerance above 0".into());
-    }
     Ok(cfg)
 }
 
@@ -468,7 +466,7 @@ pub fn run(args: &SimulateArgs) -> Result<(), String> {
     // At least one tick after the command: a run without one has no response to report.
     sc.run_ticks = ticks(&args.seconds, "--seconds", 1)?;
     sc.use_pot = !args.no_pot;
-    sc.supervision.clutch_monitor = args.clutch_monitor;
+    sc.supervision.clutch_monitor = !args.no_clutch_monitor;
     sc.steady_window_ticks = 500.min(sc.run_ticks);
     // For a sine, the RMS error skips the first period (start transient).
     sc.rms_from_ticks = period_s.map_or(0, |p| ((p * 1e3).round() as u32).min(sc.run_ticks));

@@ -114,10 +114,6 @@ fn argument_attacks_exit_2_naming_the_argument() {
             &["simulate", "--step", "0.5rad", "--clutch-tolerance=-1mm"],
             "--clutch-tolerance",
         ),
-        (
-            &["simulate", "--step", "0.5rad", "--clutch-monitor"],
-            "--clutch-monitor",
-        ),
     ] {
         usage_error(&vsa(args), want);
     }

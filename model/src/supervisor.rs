@@ -124,9 +124,9 @@ pub struct SupervisorConfig {
     pub pot_error: Option<PotErrorTable>,
     /// Runs the clutch monitor's stiffness estimate ([`crate::clutch_monitor`]): the
     /// `clutch-mismatch` fault and, once the stiffness is confirmed, the capacity at the
-    /// configured length. Needs a clutch tolerance above 0. Default off (the estimate
-    /// trips on off-nominal actuators with the right clutch, docs/calibration.md); the
-    /// overload check then keeps the tolerance's weak capacity.
+    /// configured length. Runs only with a clutch tolerance above 0 (a board's until a
+    /// calibration confirms the clutch). Default on; off, the overload check keeps the
+    /// tolerance's weak capacity.
     pub clutch_monitor: bool,
 }
 
@@ -145,7 +145,7 @@ impl SupervisorConfig {
         pot_tolerance_counts: 3,
         overload_ticks: 2,
         pot_error: None,
-        clutch_monitor: false,
+        clutch_monitor: true,
     };
 }
 

@@ -16,8 +16,9 @@
 //!
 //! # What is timed, over which inputs
 //!
-//! For each clutch length L = 1 … 5 mm, the servo (paper preset, default supervisor)
-//! runs 2000 ticks in closed loop with the simulated actuator (`plant`, 0.3 N·m load, as
+//! For each clutch length L = 1 … 5 mm, the servo (paper preset, default supervisor, the
+//! clutch tolerance a board takes until a calibration confirms the clutch, so the clutch
+//! monitor runs) runs 2000 ticks in closed loop with the simulated actuator (`plant`, 0.3 N·m load, as
 //! in the step sweep; the plant is not timed): hold, a 0.5 rad raw step, a 200 ms
 //! minimum-jerk move back, a 2 Hz sine. The f32 port runs the same script in its own
 //! closed loop (a second plant), so each controller sees the sensors its own outputs
@@ -145,6 +146,7 @@ mod suite {
     use model::{Angle, Design, Frequency, Length, Torque};
     use plant::harness::{plant_for, Scenario};
     use protocol::{encode_telemetry, FaultSet, LimitFlags, TelemetrySample, MAX_TELEMETRY_FRAME};
+    use service::clutch_confirmation::UNCONFIRMED_TOLERANCE_UM;
 
     /// Ticks per clutch length.
     const SEGMENT_TICKS: u32 = 2000;
@@ -191,7 +193,12 @@ mod suite {
         let design = Design::paper();
         let mut buf = [0u8; MAX_TELEMETRY_FRAME];
         for mm in 1..=5 {
-            let config = Config::paper(Length::from_int(mm));
+            // As a board runs until a calibration confirms the clutch: the clutch taken
+            // longer by the unconfirmed tolerance, the clutch monitor running.
+            let mut config = Config::paper(Length::from_int(mm));
+            config.limits.clutch_tolerance =
+                Length::from_micro(i64::from(UNCONFIRMED_TOLERANCE_UM) * 1000)
+                    .unwrap_or(config.limits.clutch_tolerance);
             let Ok(mut servo) = Servo::new(&design, &config, &SupervisorConfig::DEFAULT) else {
                 defmt::error!("bench: servo rejected at L = {=i32} mm", mm);
                 continue;
