@@ -1,6 +1,7 @@
 //! A clutch set by hand to the wrong length (model::clutch_monitor, docs/calibration.md):
 //! the controller and the supervisor are told L, the simulated beams are L + δ (softer and
-//! weaker). With a clutch tolerance of 0.6 mm (a clutch slid by hand), moves and sines up to the
+//! weaker). With the clutch tolerance a board takes until a calibration confirms the
+//! clutch (1 mm, a clutch slid by hand), moves and sines up to the
 //! torque limit against a load never bend the beams beyond σ_allow (the true stress from
 //! the plant), and where the pot resolves the deflection `clutch-mismatch` latches within
 //! 1 s of the motion's start.
@@ -11,6 +12,10 @@ use model::supervisor::FaultCode;
 use model::Length;
 use plant::harness::{allowable_stress_pa, bridge_command, plant_for, Scenario};
 use plant::overrides::Override;
+use service::clutch_confirmation::UNCONFIRMED_TOLERANCE_UM;
+
+/// The clutch tolerance of the runs, mm.
+const TOLERANCE_MM: f64 = UNCONFIRMED_TOLERANCE_UM as f64 / 1000.0;
 
 /// τ_cap at the configured length, N·m.
 fn capacity_nm(l: i32) -> f64 {
@@ -20,12 +25,26 @@ fn capacity_nm(l: i32) -> f64 {
 }
 
 /// The motions of the grid.
-const MOTIONS: [&str; 4] = [
+const MOTIONS: [&str; 5] = [
     "0.5 rad in 60 ms",
     "raw step 1 rad",
     "sine 0.3 rad 3 Hz",
     "heavy load, 1 rad in 100 ms",
+    "0.7 of the weak capacity, 0.5 rad in 200 ms",
 ];
+
+/// Whether the pot can resolve the wrong clutch under the run's static load: the softer
+/// beams deflect at least one pot count further than the configured ones
+/// (|τ|·(1/k(L + δ) − 1/k(L)), Euler–Bernoulli k of the f64 oracle, paper eq. 4).
+fn resolvable(l_mm: f64, actual_mm: f64, load_nm: f64) -> bool {
+    let d = host_tests::oracle::Design::paper();
+    let extra =
+        load_nm.abs() * (1.0 / d.stiffness(actual_mm * 1e-3) - 1.0 / d.stiffness(l_mm * 1e-3));
+    let pot_count = (f64::from(model::sensors::POT_SPAN_DEG)
+        / f64::from(model::sensors::POT_COUNTS))
+    .to_radians();
+    extra >= pot_count
+}
 
 struct Run {
     peak_ratio: f64,
@@ -74,7 +93,7 @@ fn run(sc: &Scenario) -> Run {
 }
 
 /// Moves and sines up to the torque limit on a clutch up to 1 mm longer than configured.
-/// The clutch tolerance is 0.6 mm. With `monitor` the clutch monitor runs
+/// The clutch tolerance is the board's unconfirmed one. With `monitor` the clutch monitor runs
 /// (`clutch-mismatch` possible); without it only the tolerance's weak capacity protects the
 /// beams. Returns the
 /// labels of the runs that latched `clutch-mismatch`, and asserts that no run bends the
@@ -84,6 +103,7 @@ fn wrong_clutch_grid(monitor: bool) -> Vec<String> {
     let mut caught = vec![];
     let mut over: Vec<String> = vec![];
     let mut false_trips: Vec<String> = vec![];
+    let mut missed: Vec<String> = vec![];
     for l in 1..=5 {
         for delta_um in [0, 250, 500, 1000] {
             let actual_mm = f64::from(l) + f64::from(delta_um) * 1e-3;
@@ -96,9 +116,19 @@ fn wrong_clutch_grid(monitor: bool) -> Vec<String> {
                     sim::min_jerk("1", 100),
                     -(0.5 * capacity_nm(l)).min(0.5) as f32,
                 ),
+                (
+                    MOTIONS[4],
+                    sim::min_jerk("0.5", 200),
+                    // τ_cap ∝ 1/L: the capacity of the longest clutch the tolerance
+                    // allows; at most 0.8 N·m (what the motor holds while it moves the
+                    // link 0.5 rad in 200 ms at 1 and 2 mm).
+                    -(0.7 * capacity_nm(l) * f64::from(l) / (f64::from(l) + TOLERANCE_MM)).min(0.8)
+                        as f32,
+                ),
             ] {
                 let mut sc = sim::scenario(l, cmd, load);
-                sc.config.limits.clutch_tolerance = Length::from_micro(600_000).unwrap();
+                sc.config.limits.clutch_tolerance =
+                    Length::from_micro(i64::from(UNCONFIRMED_TOLERANCE_UM) * 1000).unwrap();
                 sc.supervision.clutch_monitor = monitor;
                 sc.plant
                     .set(Override::parse(&format!("clutch={actual_mm}mm")).unwrap());
@@ -123,6 +153,10 @@ fn wrong_clutch_grid(monitor: bool) -> Vec<String> {
                 if delta_um == 0 && mismatch.is_some() {
                     false_trips.push(label.clone());
                 }
+                let within_1_s = mismatch.is_some_and(|(_, t)| *t <= 1000);
+                if monitor && resolvable(f64::from(l), actual_mm, f64::from(load)) && !within_1_s {
+                    missed.push(label.clone());
+                }
                 if let Some((_, t)) = mismatch {
                     caught.push(label.clone());
                     // Within 1 s where the pot resolves the deflection (1 mm, below);
@@ -138,7 +172,12 @@ fn wrong_clutch_grid(monitor: bool) -> Vec<String> {
     }
     println!(
         "worst peak stress {worst:.3} σ_allow; clutch-mismatch caught in: {caught:#?}; \
-         over σ_allow: {over:#?}; false mismatch: {false_trips:#?}"
+         over σ_allow: {over:#?}; false mismatch: {false_trips:#?}; resolvable, not caught \
+         within 1 s: {missed:#?}"
+    );
+    assert!(
+        missed.is_empty(),
+        "resolvable wrong clutch not caught within 1 s: {missed:?}"
     );
     assert!(
         false_trips.is_empty(),

@@ -69,8 +69,8 @@ pub struct Limits {
     /// [0, 5]. The beams' capacity at L + this (τ_cap ∝ 1/L, eq. 2) is the one the torque
     /// limit above and the supervisor's overload check use (the latter until the clutch
     /// monitor, if on, confirms the stiffness; docs/calibration.md, "The clutch
-    /// monitor"). 0.6 mm covers ±0.5 mm of sliding by hand plus 0.1 mm of reading the
-    /// scale. Default 0 (τ_cap(L) as configured), for the reasons measured there.
+    /// monitor"). Default 0 (τ_cap(L) as configured); a board takes 1 mm until a
+    /// calibration confirms the clutch (`service::clutch_confirmation`).
     pub clutch_tolerance: Length,
 }
 
