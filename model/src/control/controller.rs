@@ -523,10 +523,16 @@ impl Controller {
         // the gear approaches the target faster than the available deceleration a_b can
         // stop it, ω_g² > 2·a_b·|e|, brake at the limit now instead of when the linear
         // zone is reached. Products only (no square root).
+        // The observer's bias bound (current offset, and R error × |i|): with a warm motor
+        // its phantom speed follows the duty, and a governor that braked on it chattered
+        // at rest under load (duty ±1000 ‰ on alternate ticks).
+        let dead_band = s
+            .w_deadband_q16
+            .saturating_add(s.w_bias_per_amp.apply(current.saturating_abs()));
         let mut u = u;
         if r.velocity_q16 == 0
             && r.acceleration_q16 == 0
-            && w_gear.saturating_abs() > s.brake_min_w_q16
+            && w_gear.saturating_abs() > s.brake_min_w_q16.saturating_add(dead_band)
             && (w_gear > 0) == (e > 0)
             && e != 0
         {
@@ -555,9 +561,6 @@ impl Controller {
         // chased the bias of a warm motor under load hunted.
         let inc = if in_count || resting {
             let slip = w_gear.saturating_sub(r.velocity_q16);
-            let dead_band = s
-                .w_deadband_q16
-                .saturating_add(s.w_bias_per_amp.apply(current.saturating_abs()));
             // Only for a stationary reference: a moving one asks the gear for ṙ plus the
             // deflection's rate (−ṙ at a sine's coupling resonance), and the slip
             // integrated whenever the link crossed the reference's count kicked the hold
