@@ -147,7 +147,7 @@ pub struct Case {
     /// The simulated actuator's deviations from the nominal one.
     pub plant: Overrides,
     /// How much longer than configured the clutch may be, µm (0 as drawn; a board takes
-    /// 600 until a calibration confirms the clutch, docs/calibration.md).
+    /// 1000 until a calibration confirms the clutch, docs/calibration.md).
     pub clutch_tolerance_um: u32,
 }
 

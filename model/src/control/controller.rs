@@ -523,9 +523,9 @@ impl Controller {
         // the gear approaches the target faster than the available deceleration a_b can
         // stop it, ω_g² > 2·a_b·|e|, brake at the limit now instead of when the linear
         // zone is reached. Products only (no square root).
-        // The observer's bias bound (current offset, and R error × |i|): with a warm motor
-        // its phantom speed follows the duty, and a governor that braked on it chattered
-        // at rest under load (duty ±1000 ‰ on alternate ticks).
+        // Only beyond the observer's bias bound (current offset, and R error × |i|): with
+        // a warm motor its phantom speed follows the duty, and a governor that braked on
+        // it chattered at rest under load (duty swinging 1 500 ‰ tick to tick, design §11).
         let dead_band = s
             .w_deadband_q16
             .saturating_add(s.w_bias_per_amp.apply(current.saturating_abs()));
