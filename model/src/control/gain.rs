@@ -103,17 +103,12 @@ impl Gain {
             ((p >> 32) as i32) >> (self.s - 32)
         } else {
             // p >> s for s < 32 in 32-bit halves (LLVM's i64 shift also handles s ≥ 32,
-            // ten instructions more), then saturated: it fits an i32 iff the high half
-            // is the low half's sign.
+            // ten instructions more), then saturated.
             let (hi, lo) = ((p >> 32) as i32, p as u32);
             let s = self.s & 31;
             // (hi << 1) << (31 − s): hi << (32 − s) without a shift by 32 at s = 0.
-            let r = ((lo >> s) | (((hi as u32) << 1) << (31 - s))) as i32;
-            if hi >> s == r >> 31 {
-                r
-            } else {
-                (hi >> 31) ^ i32::MAX
-            }
+            let r = (lo >> s) | (((hi as u32) << 1) << (31 - s));
+            sat_i32(((hi >> s) as i64) << 32 | r as i64)
         }
     }
 
