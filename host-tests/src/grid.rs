@@ -195,9 +195,9 @@ impl Case {
                 duration_ms: ms,
             },
         };
+        // µm → mm as the board takes it off the wire.
         cfg.limits.clutch_tolerance =
-            Length::from_micro(i64::from(self.clutch_tolerance_um) * 1000)
-                .unwrap_or(cfg.limits.clutch_tolerance);
+            Length::from_bits(service::milli_to_q32(self.clutch_tolerance_um.into()));
         let mut sc = Scenario::new(cfg, command);
         sc.load_nm = self.load_nm as f32;
         sc.plant = self.plant;
