@@ -38,6 +38,7 @@ use model::control::schedule::{
     CONTACT_TORQUE_NM, COULOMB_RAMP_RAD_S, CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM,
     FREE_PLAY_SWITCH_NM, IMPACT_SPEED_FRACTION, OBSERVER_RATIO, RESISTANCE_LOW,
     RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM, REST_ZONE_FREE_PLAYS,
+    TORQUE_FEEDBACK_CORNER,
 };
 use model::control::{dash, Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
@@ -128,6 +129,7 @@ pub struct FloatSchedule {
     contact_torque: f32,
     obs_beta: f32,
     obs_beta2: f32,
+    torque_lp_beta: f32,
     float_load: f32,
     rest_zone: f32,
     rest_load: f32,
@@ -218,6 +220,7 @@ impl FloatSchedule {
             contact_torque: i32f32(CONTACT_TORQUE_NM.to_bits()),
             obs_beta: 2.0 * w_c / OBSERVER_RATIO as f32 * DT,
             obs_beta2: (w_c / OBSERVER_RATIO as f32) * (w_c / OBSERVER_RATIO as f32) * DT,
+            torque_lp_beta: i32f32(TORQUE_FEEDBACK_CORNER.to_bits()) * w_c * DT,
             float_load: i32f32(FLOAT_LOAD_NM.to_bits()) / c * dpv,
             rest_zone: i32f32(REST_ZONE_FREE_PLAYS.to_bits()) * free_play,
             rest_load: i32f32(REST_LOAD_NM.to_bits()) / c * dpv,
@@ -608,6 +611,7 @@ pub struct FloatController {
     theta_g_valid: bool,
     rest_ticks: u8,
     w_bias: f32,
+    torque_error_lp: f32,
 }
 
 impl FloatController {
@@ -639,6 +643,7 @@ impl FloatController {
             theta_g_valid: false,
             rest_ticks: 0,
             w_bias: 0.0,
+            torque_error_lp: 0.0,
         }
     }
 
@@ -691,6 +696,7 @@ impl FloatController {
         self.theta_g_valid = false;
         self.rest_ticks = 0;
         self.w_bias = 0.0;
+        self.torque_error_lp = 0.0;
     }
 
     fn centred_counts(&self, raw: u16) -> i32 {
@@ -768,7 +774,6 @@ impl FloatController {
             self.theta_g_valid = true;
         }
         let e_g = r.position + self.defl_prev - self.theta_g;
-        let e_p = if floating { e_g } else { e };
         // Rest without load: the gear stays where it is.
         let stationary = r.velocity == 0.0 && r.acceleration == 0.0;
         let near = libm::fabsf(e_raw) <= s.rest_zone;
@@ -819,6 +824,14 @@ impl FloatController {
             (0.25, 0.5, 0.125)
         } else {
             (1.0, 1.0, 1.0)
+        };
+        // A loaded link: the beams' torque error above the corner puts the gear in the loop.
+        let torque_error_hp = tau - tau_ref - self.torque_error_lp;
+        self.torque_error_lp += s.torque_lp_beta * torque_error_hp;
+        let e_p = if floating {
+            e_g
+        } else {
+            e - s.inv_k * torque_error_hp
         };
         let u_p = if resting { 0.0 } else { s.kp * soft_p * e_p };
         let u = u_ff + u_defl + u_coulomb + u_p + u_i + s.kd * soft_d * (self.w_ref - self.w_fb);

@@ -66,6 +66,34 @@ fn raw_step_under_load_with_a_warm_motor_comes_to_rest() {
     }
 }
 
+/// A light link configured (0.35e-3 kg·m²) at a soft setting, the real one 2× and 3×
+/// heavier, holding a load: its anti-resonance √(k/J_l) falls to 2.9…3.6 ω_c. With the
+/// P term on the link alone (non-collocated) the hold limit-cycled through the free play
+/// (19–33 counts, duty span 493–963 ‰, up to 1.14 σ_allow; at 6 mm ×3 `beam-overload`
+/// at 1.52 σ_allow and the link ran away under its load);
+/// the beams' torque error in it puts the gear back in the loop (design §11, step 8).
+#[test]
+fn hold_under_load_with_a_link_heavier_than_configured() {
+    for l in [6, 7] {
+        for heavier in ["x2", "x3"] {
+            for load in [0.1, 0.265, -0.265] {
+                let mut sc = sim::scenario(l, sim::raw_step("0"), load);
+                sc.config.link_inertia = model::Inertia::from_int(350);
+                sc.plant
+                    .set(Override::parse(&format!("link-inertia={heavier}")).expect("override"));
+                let m = sim::run(&sc);
+                let label = format!("L = {l} mm, load {load:+} N·m, link {heavier}, hold");
+                println!("{}", sim::describe(&label, &m));
+                assert!(m.steady_state_error_counts <= 1.0, "{label}: steady error");
+                assert!(m.steady_duty_span <= 20, "{label}: duty hunts");
+                assert!(m.steady_count_span <= 1, "{label}: link hunts");
+                assert!(m.peak_stress_ratio < 1.0, "{label}: beams overloaded");
+                assert!(m.faults.is_empty(), "{label}: fault");
+            }
+        }
+    }
+}
+
 #[test]
 fn step_without_gear_pot() {
     for l in [1, 3, 5] {

@@ -147,6 +147,8 @@ pub struct Controller {
     w_bias: i64,
     /// Ticks in a row the rest hold's conditions have held.
     rest_ticks: u8,
+    /// τ̂ − τ_ref through a low-pass at `TORQUE_FEEDBACK_CORNER`·ω_c, N·m Q16.
+    torque_error_lp: i32,
 }
 
 impl Controller {
@@ -176,6 +178,7 @@ impl Controller {
             integ: 0,
             duty_prev: 0,
             defl_prev: 0,
+            torque_error_lp: 0,
             defl_valid: false,
             elastic_prev: 0,
             theta_g: 0,
@@ -292,6 +295,7 @@ impl Controller {
         self.theta_g_valid = false;
         self.w_bias = 0;
         self.rest_ticks = 0;
+        self.torque_error_lp = 0;
     }
 
     /// One 1 kHz control step. Total: no panics, saturating arithmetic throughout.
@@ -478,6 +482,16 @@ impl Controller {
         // ω_c/2 (K_p/4, K_i/8, K_d/2), so that the gear meets the link's bounces in the
         // free play softly instead of throwing it back (design §11, step 8).
         let soft = u32::from(floating && (near || !stationary));
+        // A link in contact: the P term sees the gear, not the link, above the corner. The
+        // link plus the deflection the beams show, θ_l + (τ̂ − τ_ref)/k, is the gear's
+        // place (collocated with the motor); the link alone, non-collocated, let a link
+        // heavier than configured limit-cycle at its anti-resonance (design §11, step 8).
+        let torque_error_hp = tau
+            .saturating_sub(tau_ref)
+            .saturating_sub(self.torque_error_lp);
+        self.torque_error_lp = self
+            .torque_error_lp
+            .saturating_add(s.torque_lp_beta.apply(torque_error_hp));
         // --- PID (derivative on the filtered link velocity) ---
         let u = u_ff
             .saturating_add(u_defl)
@@ -485,7 +499,11 @@ impl Controller {
             .saturating_add(if resting {
                 0
             } else {
-                s.kp.apply(if floating { e_g >> (2 * soft) } else { e })
+                s.kp.apply(if floating {
+                    e_g >> (2 * soft)
+                } else {
+                    e.saturating_sub(s.inv_k.apply(torque_error_hp))
+                })
             })
             .saturating_add(u_i)
             .saturating_add(s.kd.apply(self.w_ref.saturating_sub(self.w_fb) >> soft));

@@ -52,6 +52,12 @@ pub const CURRENT_OFFSET_TOLERANCE_COUNTS: i32 = 20;
 /// cases): 1.0 leaves 17 runs above σ_allow, 0.6 leaves 6.
 pub const IMPACT_SPEED_FRACTION: I32F32 = I32F32::lit("0.6");
 
+/// Corner of the torque feedback's high-pass, in ω_c: the P term of a loaded link acts on
+/// the link error less the beams' torque error above it, (τ̂ − τ_ref)/k (docs/design.md
+/// §11, step 8). Measured on the acceptance grid's six extra seeds: 2 and ⅔ within a few
+/// runs of each other; without the high-pass the moves of heavy links overshot more.
+pub const TORQUE_FEEDBACK_CORNER: I32F32 = I32F32::lit("2");
+
 /// Crossover of the gear-angle complementary filter: ω_o = ω_c / `OBSERVER_RATIO`.
 pub const OBSERVER_RATIO: i32 = 3;
 
@@ -122,6 +128,8 @@ pub struct Schedule {
     pub(crate) obs_beta: Gain,
     /// The bias integrator's gain ω_o²·dt (1/s per tick).
     pub(crate) obs_beta2: Gain,
+    /// The torque feedback's low-pass, `TORQUE_FEEDBACK_CORNER`·ω_c·dt per tick.
+    pub(crate) torque_lp_beta: Gain,
     /// Half-width of the rest hold, `REST_ZONE_FREE_PLAYS`·φ_b, rad Q16, and the duty of
     /// `REST_LOAD_NM`, ‰ Q16.
     pub(crate) rest_zone_q16: i32,
@@ -442,6 +450,7 @@ impl Schedule {
                 div(wide(FLOAT_LOAD_NM), p.torque_per_volt)?,
                 duty_per_volt,
             )?)?,
+            torque_lp_beta: to_gain(mul(mul(w, wide(TORQUE_FEEDBACK_CORNER))?, dt)?)?,
             obs_beta2: to_gain(mul(
                 mul(
                     div(w, I64F64::from_num(OBSERVER_RATIO))?,
