@@ -340,6 +340,12 @@ pub struct FloatTrajectory {
 }
 
 impl FloatTrajectory {
+    /// `true` while a sine runs.
+    #[must_use]
+    pub const fn is_sine(&self) -> bool {
+        matches!(self.mode, Mode::Sine { .. })
+    }
+
     /// Holding at `position` (rad).
     #[must_use]
     pub const fn new(position: f32) -> Self {
@@ -830,6 +836,8 @@ impl FloatController {
         self.torque_error_lp += s.torque_lp_beta * torque_error_hp;
         let e_p = if floating {
             e_g
+        } else if self.traj.is_sine() {
+            e
         } else {
             e - s.inv_k * torque_error_hp
         };

@@ -187,8 +187,8 @@ impl HandCheck {
 /// stiffest setting). The gear's Coulomb friction, which the model leaves out, costs about
 /// the same at both settings (the gear swings about as far) and cancels.
 ///
-/// Measured: 8.71 mJ saved (51.95 → 43.24 mJ per cycle) against the model's 9.49 mJ
-/// (50.32 → 40.82 mJ), 8.2 % apart; without the hysteresis term the model says 10.38 mJ.
+/// Measured: 8.72 mJ saved (51.95 → 43.22 mJ per cycle) against the model's 9.49 mJ
+/// (50.32 → 40.82 mJ), 8.1 % apart; without the hysteresis term the model says 10.38 mJ.
 #[test]
 fn a_task_at_the_natural_frequency_saves_what_two_masses_predict() {
     let (d, w) = HandCheck::omega();
@@ -219,7 +219,7 @@ fn a_task_at_the_natural_frequency_saves_what_two_masses_predict() {
 /// motion and the losses decide the amplitude: it takes the feed-forward of the gear's
 /// Coulomb friction and of the beams' hysteresis band (docs/design.md §11, step 7), a hold
 /// integrator that leaves a moving reference alone (step 8) and the skipped start
-/// transient of the slow loop at soft settings. Measured: 0.70 mrad at L = 15 mm, 0.34 mrad
+/// transient of the slow loop at soft settings. Measured: 0.68 mrad at L = 15 mm, 0.34 mrad
 /// at 5 mm (3.85 mrad at 15 mm without them).
 #[test]
 fn a_task_at_the_natural_frequency_picks_that_setting() {

@@ -486,6 +486,8 @@ impl Controller {
         // link plus the deflection the beams show, θ_l + (τ̂ − τ_ref)/k, is the gear's
         // place (collocated with the motor); the link alone, non-collocated, let a link
         // heavier than configured limit-cycle at its anti-resonance (design §11, step 8).
+        // Not for a sine: its two-mass feed-forward places the gear, and near the coupling
+        // resonance the term cost tracking.
         let torque_error_hp = tau
             .saturating_sub(tau_ref)
             .saturating_sub(self.torque_error_lp);
@@ -501,6 +503,8 @@ impl Controller {
             } else {
                 s.kp.apply(if floating {
                     e_g >> (2 * soft)
+                } else if self.traj.is_sine() {
+                    e
                 } else {
                     e.saturating_sub(s.inv_k.apply(torque_error_hp))
                 })

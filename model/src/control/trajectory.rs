@@ -207,6 +207,12 @@ impl Trajectory {
         })
     }
 
+    /// `true` while a sine runs.
+    #[must_use]
+    pub const fn is_sine(&self) -> bool {
+        matches!(self.mode, Mode::Sine { .. })
+    }
+
     /// `true` while a move is under way or a sine runs.
     #[must_use]
     pub const fn is_moving(&self) -> bool {
