@@ -454,6 +454,12 @@ impl FloatTrajectory {
 
     /// Advances one tick and returns the new reference.
     pub fn advance(&mut self) -> FloatReference {
+        self.advance_limited(0.0)
+    }
+
+    /// `advance`, told the side the drive was at its duty limit on the last tick (+1, −1, 0):
+    /// a raw step's profile then gains no speed that way.
+    pub fn advance_limited(&mut self, limited: f32) -> FloatReference {
         match &mut self.mode {
             Mode::Hold => {}
             Mode::Dash {
@@ -468,7 +474,9 @@ impl FloatTrajectory {
             } => {
                 let s = *speed;
                 let left = (*target - self.pos) * *sign;
-                let mut next = if *braking == 0.0 {
+                let mut next = if *braking == 0.0 && limited == *sign && s > 0.0 {
+                    s
+                } else if *braking == 0.0 {
                     s + (*accel * DT).min(*beta * (*top - s))
                 } else {
                     s - *braking * DT
@@ -618,6 +626,7 @@ pub struct FloatController {
     rest_ticks: u8,
     w_bias: f32,
     torque_error_lp: f32,
+    limited: f32,
 }
 
 impl FloatController {
@@ -650,6 +659,7 @@ impl FloatController {
             rest_ticks: 0,
             w_bias: 0.0,
             torque_error_lp: 0.0,
+            limited: 0.0,
         }
     }
 
@@ -703,6 +713,7 @@ impl FloatController {
         self.rest_ticks = 0;
         self.w_bias = 0.0;
         self.torque_error_lp = 0.0;
+        self.limited = 0.0;
     }
 
     fn centred_counts(&self, raw: u16) -> i32 {
@@ -763,7 +774,7 @@ impl FloatController {
         };
 
         // --- reference and error ---
-        let r = self.traj.advance();
+        let r = self.traj.advance_limited(self.limited);
         let e_raw = r.position - theta_l;
         let in_count = (-HALF_COUNT..HALF_COUNT).contains(&e_raw);
         let e = if in_count { 0.0 } else { e_raw };
@@ -881,6 +892,7 @@ impl FloatController {
         let sat_hi = u > hi;
         let sat_lo = u < lo;
         let uc = u.clamp(lo, hi);
+        self.limited = f32::from(i8::from(sat_hi && hi == dl) - i8::from(sat_lo && lo == -dl));
         let at_current = (sat_hi && hi == hi_i) || (sat_lo && lo == lo_i);
         let flags = FloatFlags {
             torque_limited: (at_current && s.i_lim_from_beams) || libm::fabsf(tau) > s.tau_lim,

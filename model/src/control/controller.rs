@@ -149,6 +149,8 @@ pub struct Controller {
     rest_ticks: u8,
     /// τ̂ − τ_ref through a low-pass at `TORQUE_FEEDBACK_CORNER`·ω_c, N·m Q16.
     torque_error_lp: i32,
+    /// The side the output was clamped on in the last tick (+1, −1, 0).
+    limited: i8,
 }
 
 impl Controller {
@@ -179,6 +181,7 @@ impl Controller {
             duty_prev: 0,
             defl_prev: 0,
             torque_error_lp: 0,
+            limited: 0,
             defl_valid: false,
             elastic_prev: 0,
             theta_g: 0,
@@ -296,6 +299,7 @@ impl Controller {
         self.w_bias = 0;
         self.rest_ticks = 0;
         self.torque_error_lp = 0;
+        self.limited = 0;
     }
 
     /// One 1 kHz control step. Total: no panics, saturating arithmetic throughout.
@@ -368,20 +372,34 @@ impl Controller {
         };
 
         // --- reference and error (zero inside the reference's encoder count) ---
-        let r: Reference = self.traj.advance();
-        let e_q32 = r.position.to_bits().saturating_sub(theta_l);
-        let in_count = (-ENCODER_HALF_COUNT_Q32..ENCODER_HALF_COUNT_Q32).contains(&e_q32);
+        let r: Reference = self.traj.advance_limited(i32::from(self.limited));
+        // |r| ≤ `MAX_ANGLE_RAD` and |θ_l| < 2⁵⁵ (an i32 count of 2π/4096 rad, 2²²·⁷ in
+        // Q32): the plain difference cannot overflow (the M3 has no 64-bit saturating
+        // subtract).
+        let e_q32 = r.position.to_bits() - theta_l;
+        // −½ count ≤ e < ½ count as one unsigned compare.
+        let in_count =
+            (e_q32.wrapping_add(ENCODER_HALF_COUNT_Q32) as u64) < 2 * ENCODER_HALF_COUNT_Q32 as u64;
 
         // --- gear angle: complementary filter of the observer and the link encoder ---
         // The link at the point of its measured count nearest the reference (the encoder
         // cannot tell better), plus the deflection the coupling needs.
-        let link =
-            theta_l.saturating_add(e_q32.clamp(-ENCODER_HALF_COUNT_Q32, ENCODER_HALF_COUNT_Q32));
+        let nearest = if in_count {
+            e_q32
+        } else if e_q32 < 0 {
+            -ENCODER_HALF_COUNT_Q32
+        } else {
+            ENCODER_HALF_COUNT_Q32
+        };
+        let link = theta_l + nearest;
         let anchor = link.saturating_add(q16_to_q32(self.defl_prev));
         // Under load the beams stay in contact on one side and the link error is the
         // better signal (an observer scale error adds up over a move); the gear loop is for
         // a link that floats in the free play.
-        let floating = q32_to_q16(self.integ).saturating_abs() < s.float_load_q16;
+        // The integrator's duty (‰ Q16), once: it is updated at the end of the tick.
+        let u_i = q32_to_q16(self.integ);
+        let load_abs = u_i.saturating_abs();
+        let floating = load_abs < s.float_load_q16;
         if self.theta_g_valid && floating {
             let w = w_gear.saturating_sub(q32_to_q16(self.w_bias));
             self.theta_g = self.theta_g.saturating_add(s.dt.apply_wide(w));
@@ -404,7 +422,7 @@ impl Controller {
         // gear creep, the hold integrates it and the integrator leaves the band.
         let stationary = r.velocity_q16 == 0 && r.acceleration_q16 == 0;
         let near = q32_to_q16(e_q32).saturating_abs() <= s.rest_zone_q16;
-        let calm = q32_to_q16(self.integ).saturating_abs() < s.rest_load_q16
+        let calm = load_abs < s.rest_load_q16
             && tau.saturating_abs() < s.rest_torque_q16
             && stationary
             && near;
@@ -438,7 +456,6 @@ impl Controller {
             .vel
             .apply(r.velocity_q16)
             .saturating_add(self.ff.acc.apply(r.acceleration_q16));
-        let u_i = q32_to_q16(self.integ);
         let tau_ref = s
             .j_link
             .apply(r.acceleration_q16)
@@ -566,6 +583,7 @@ impl Controller {
         let sat_hi = u > hi;
         let sat_lo = u < lo;
         let uc = u.clamp(lo, hi);
+        self.limited = i8::from(sat_hi && hi == dl) - i8::from(sat_lo && lo == -dl);
         let at_current = (sat_hi && hi == hi_i) || (sat_lo && lo == lo_i);
         let flags = Flags {
             torque_limited: (at_current && s.i_lim_from_beams)

@@ -141,12 +141,14 @@ impl Dash {
     /// Advances one tick from `position`. Sign flips rather than products by the
     /// direction, and the 64-bit products only where a square needs them: this runs
     /// inside the control step's instruction budget.
-    pub(crate) fn advance(&mut self, position: i64) -> DashTick {
+    pub(crate) fn advance(&mut self, position: i64, limited: i32) -> DashTick {
         let s = self.speed;
         let up = self.sign > 0;
         let diff = self.target.saturating_sub(position);
         let left = if up { diff } else { diff.saturating_neg() };
-        let mut next = if self.braking == 0 {
+        let mut next = if self.braking == 0 && limited == self.sign && s > 0 {
+            s // the drive is at its limit: no more speed than the actuator follows
+        } else if self.braking == 0 {
             // The current limit or the voltage limit, whichever binds.
             let by_current = self.dt.apply(self.accel);
             let by_voltage = self.beta.apply(self.top.saturating_sub(s));

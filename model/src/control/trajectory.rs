@@ -385,6 +385,13 @@ impl Trajectory {
 
     /// Advances one tick and returns the new reference.
     pub fn advance(&mut self) -> Reference {
+        self.advance_limited(0)
+    }
+
+    /// [`Trajectory::advance`], told that the drive was at a limit on the last tick in the
+    /// direction `limited` (+1, −1, or 0 for none): a raw step's profile then gains no
+    /// speed that way.
+    pub(crate) fn advance_limited(&mut self, limited: i32) -> Reference {
         match &mut self.mode {
             Mode::Hold => {}
             Mode::Quintic {
@@ -436,7 +443,7 @@ impl Trajectory {
                 self.acc = sat_i32(-((i64::from(*acc_amp) * s) >> 30));
             }
             Mode::Dash(d) => {
-                let t = d.advance(self.pos);
+                let t = d.advance(self.pos, limited);
                 self.pos = t.position;
                 self.vel = t.velocity_q16;
                 self.acc = t.acceleration_q16;
