@@ -373,9 +373,9 @@ impl Controller {
 
         // --- reference and error (zero inside the reference's encoder count) ---
         let r: Reference = self.traj.advance_limited(i32::from(self.limited));
-        // |r| ≤ `MAX_ANGLE_RAD` and |θ_l| < 2⁵⁵ (an i32 count of 2π/4096 rad, 2²²·⁷ in
-        // Q32): the plain difference cannot overflow (the M3 has no 64-bit saturating
-        // subtract).
+        // r (a target within `MAX_ANGLE_RAD`, or a link angle the hold started from) and θ_l
+        // (an i32 count of 2π/4096 rad, 2²²·⁷ in Q32) are below 2⁵⁵: the plain difference
+        // cannot overflow (the M3 has no 64-bit saturating subtract).
         let e_q32 = r.position.to_bits() - theta_l;
         // −½ count ≤ e < ½ count as one unsigned compare.
         let in_count =
