@@ -149,7 +149,7 @@ pub struct Controller {
     rest_ticks: u8,
     /// τ̂ − τ_ref through a low-pass at `TORQUE_FEEDBACK_CORNER`·ω_c, N·m Q16.
     torque_error_lp: i32,
-    /// The side the output was clamped on in the last tick (+1, −1, 0).
+    /// The side the output was clamped at the duty limit in the last tick (+1, −1, 0).
     limited: i8,
 }
 

@@ -21,7 +21,9 @@
 //! s_top = f_v·(u_max − σ·u_I)/ff_vel in duty terms (u_i the current limit, u_max the
 //! duty limit, u_I the integrator, ff_acc and ff_vel the feed-forward gains, σ the step's
 //! sign): the feed-forward duty ff_vel·s + ff_acc·a + u_I then leaves (1 − f_i) of the
-//! current headroom and (1 − f_v) of the duty headroom to the PID.
+//! current headroom and (1 − f_v) of the duty headroom to the PID. While the output was at
+//! the duty limit in the step's direction (an actuator slower than configured), the speed
+//! holds instead of growing: the reference runs no faster than the link follows.
 //!
 //! Formats: speeds Q16 rad/s, accelerations Q16 rad/s², positions I32F32 rad bits.
 

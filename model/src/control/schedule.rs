@@ -54,8 +54,9 @@ pub const IMPACT_SPEED_FRACTION: I32F32 = I32F32::lit("0.6");
 
 /// Corner of the torque feedback's high-pass, in ω_c: the P term of a loaded link acts on
 /// the link error less the beams' torque error above it, (τ̂ − τ_ref)/k (docs/design.md
-/// §11, step 8). Measured on the acceptance grid's six extra seeds: 2 and ⅔ within a few
-/// runs of each other; without the high-pass the moves of heavy links overshot more.
+/// §11, step 8). Measured on the acceptance grid's six extra seeds: ½, ⅔, 1 and 2 within a
+/// few runs of each other (2 had the fewest above σ_allow); without the high-pass the moves
+/// of heavy links overshot more.
 pub const TORQUE_FEEDBACK_CORNER: I32F32 = I32F32::lit("2");
 
 /// Crossover of the gear-angle complementary filter: ω_o = ω_c / `OBSERVER_RATIO`.
