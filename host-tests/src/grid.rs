@@ -196,8 +196,7 @@ impl Case {
             },
         };
         // µm → mm as the board takes it off the wire.
-        cfg.limits.clutch_tolerance =
-            Length::from_bits(service::milli_to_q32(self.clutch_tolerance_um.into()));
+        cfg.limits.clutch_tolerance = service::length_from_um(self.clutch_tolerance_um);
         let mut sc = Scenario::new(cfg, command);
         sc.load_nm = self.load_nm as f32;
         sc.plant = self.plant;

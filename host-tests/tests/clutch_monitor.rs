@@ -13,7 +13,7 @@ use model::Length;
 use plant::harness::{allowable_stress_pa, bridge_command, plant_for, Scenario};
 use plant::overrides::Override;
 use service::clutch_confirmation::UNCONFIRMED_TOLERANCE_UM;
-use service::milli_to_q32;
+use service::length_from_um;
 
 /// The clutch tolerance of the runs, mm.
 const TOLERANCE_MM: f64 = UNCONFIRMED_TOLERANCE_UM as f64 / 1000.0;
@@ -128,8 +128,7 @@ fn wrong_clutch_grid(monitor: bool) -> Vec<String> {
                 ),
             ] {
                 let mut sc = sim::scenario(l, cmd, load);
-                sc.config.limits.clutch_tolerance =
-                    Length::from_bits(milli_to_q32(UNCONFIRMED_TOLERANCE_UM.into()));
+                sc.config.limits.clutch_tolerance = length_from_um(UNCONFIRMED_TOLERANCE_UM);
                 sc.supervision.clutch_monitor = monitor;
                 sc.plant
                     .set(Override::parse(&format!("clutch={actual_mm}mm")).unwrap());

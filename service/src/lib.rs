@@ -139,6 +139,14 @@ pub const fn milli_to_q32(v: i64) -> i64 {
     to_q32(v, 1_000)
 }
 
+/// A length on the wire, µm, as a [`Length`] (mm): the clutch length and the clutch
+/// tolerance of the requests, and the tolerance a board takes until a calibration
+/// confirms the clutch.
+#[must_use]
+pub const fn length_from_um(um: u32) -> Length {
+    Length::from_bits(milli_to_q32(um as i64))
+}
+
 /// k in N·m/rad (I64F64) → mN·m/rad, rounded half up, saturated (a multiply and a shift).
 #[must_use]
 pub fn stiffness_mnm(k: Stiffness) -> u32 {
@@ -366,7 +374,7 @@ impl Actuator {
 
 /// [`Request::SetClutchLength`](protocol::Request)'s length, µm, as a clutch setting.
 fn clutch_length(length_um: u32) -> ClutchSetting {
-    ClutchSetting::Length(Length::from_bits(milli_to_q32(length_um.into())))
+    ClutchSetting::Length(length_from_um(length_um))
 }
 
 /// [`Request::SetStiffness`](protocol::Request)'s stiffness, mN·m/rad, as a clutch setting.
@@ -415,7 +423,7 @@ fn with_limits(
         max_current_a: current,
         max_motor_torque: Torque::from_bits(micro_to_q32(limits.motor_torque_unm.into())),
         max_duty: i16::try_from(limits.duty_permille).map_err(|_| ErrorCode::OutOfRange)?,
-        clutch_tolerance: Length::from_bits(milli_to_q32(limits.clutch_tolerance_um.into())),
+        clutch_tolerance: length_from_um(limits.clutch_tolerance_um.into()),
     };
     supervision.trip_current_a = current.saturating_add(TRIP_ABOVE_LIMIT_A);
     supervision.position_min = Angle::from_bits(micro_to_q32(limits.position_min_urad.into()));
@@ -532,7 +540,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
             self.service.calibrated_longest_um,
         );
         let mut in_force = config;
-        in_force.limits.clutch_tolerance = Length::from_bits(milli_to_q32(tolerance.into()));
+        in_force.limits.clutch_tolerance = length_from_um(tolerance);
         let prepared = Prepared::new(design, &in_force, &supervision).map_err(refused)?;
         self.actuator.lock(|a| a.servo.install_prepared(&prepared));
         self.service.config = config;

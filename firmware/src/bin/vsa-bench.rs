@@ -147,7 +147,7 @@ mod suite {
     use plant::harness::{plant_for, Scenario};
     use protocol::{encode_telemetry, FaultSet, LimitFlags, TelemetrySample, MAX_TELEMETRY_FRAME};
     use service::clutch_confirmation::UNCONFIRMED_TOLERANCE_UM;
-    use service::milli_to_q32;
+    use service::length_from_um;
 
     /// Ticks per clutch length.
     const SEGMENT_TICKS: u32 = 2000;
@@ -197,8 +197,7 @@ mod suite {
             // As a board runs until a calibration confirms the clutch: the clutch taken
             // longer by the unconfirmed tolerance, the clutch monitor running.
             let mut config = Config::paper(Length::from_int(mm));
-            config.limits.clutch_tolerance =
-                Length::from_bits(milli_to_q32(UNCONFIRMED_TOLERANCE_UM.into()));
+            config.limits.clutch_tolerance = length_from_um(UNCONFIRMED_TOLERANCE_UM);
             let Ok(mut servo) = Servo::new(&design, &config, &SupervisorConfig::DEFAULT) else {
                 defmt::error!("bench: servo rejected at L = {=i32} mm", mm);
                 continue;
