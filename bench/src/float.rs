@@ -892,12 +892,13 @@ impl FloatController {
         let sat_hi = u > hi;
         let sat_lo = u < lo;
         let uc = u.clamp(lo, hi);
-        self.limited = f32::from(i8::from(sat_hi && hi == dl) - i8::from(sat_lo && lo == -dl));
+        let (duty_hi, duty_lo) = (sat_hi && hi == dl, sat_lo && lo == -dl);
+        self.limited = f32::from(i8::from(duty_hi) - i8::from(duty_lo));
         let at_current = (sat_hi && hi == hi_i) || (sat_lo && lo == lo_i);
         let flags = FloatFlags {
             torque_limited: (at_current && s.i_lim_from_beams) || libm::fabsf(tau) > s.tau_lim,
             current_limited: at_current && !s.i_lim_from_beams,
-            duty_saturated: (sat_hi && hi == dl) || (sat_lo && lo == -dl),
+            duty_saturated: duty_hi || duty_lo,
         };
 
         // --- integrator ---

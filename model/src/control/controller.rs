@@ -583,13 +583,15 @@ impl Controller {
         let sat_hi = u > hi;
         let sat_lo = u < lo;
         let uc = u.clamp(lo, hi);
-        self.limited = i8::from(sat_hi && hi == dl) - i8::from(sat_lo && lo == -dl);
+        // Clamped at the duty limit, by side: the flag, and the raw step's speed hold.
+        let (duty_hi, duty_lo) = (sat_hi && hi == dl, sat_lo && lo == -dl);
+        self.limited = i8::from(duty_hi) - i8::from(duty_lo);
         let at_current = (sat_hi && hi == hi_i) || (sat_lo && lo == lo_i);
         let flags = Flags {
             torque_limited: (at_current && s.i_lim_from_beams)
                 || tau.saturating_abs() > s.tau_lim_q16,
             current_limited: at_current && !s.i_lim_from_beams,
-            duty_saturated: (sat_hi && hi == dl) || (sat_lo && lo == -dl),
+            duty_saturated: duty_hi || duty_lo,
         };
 
         // --- integrator: not further into a clamp ---
