@@ -152,6 +152,16 @@ mod tests {
         assert!((g.apply_wide(1000 * Q16_ONE) - (1i64 << 32)).abs() <= 8);
     }
 
+    /// A xorshift64 generator from `seed` (≠ 0): reproducible draws without a dependency.
+    fn xorshift(mut state: u64) -> impl FnMut() -> u64 {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        }
+    }
+
     #[test]
     fn sat_i32_is_the_clamp() {
         let edges = [
@@ -166,12 +176,10 @@ mod tests {
         let near = edges
             .iter()
             .flat_map(|&e| [e, e.wrapping_add(1), e.wrapping_sub(1)]);
-        let mut state: u64 = 0x2545_F491_4F6C_DD1D;
+        let mut next = xorshift(0x2545_F491_4F6C_DD1D);
         let random = core::iter::repeat_with(move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state as i64) >> (state % 64)
+            let r = next();
+            (r as i64) >> (r % 64)
         });
         for v in near.chain(random.take(100_000)) {
             let want = v.clamp(i64::from(i32::MIN), i64::from(i32::MAX));
@@ -184,13 +192,7 @@ mod tests {
     /// s < 32) and inputs including the extremes.
     #[test]
     fn apply_is_the_exact_floor_saturated() {
-        let mut state: u64 = 0x9E37_79B9_7F4A_7C15;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = xorshift(0x9E37_79B9_7F4A_7C15);
         let mut shifts = [0u32; 63];
         for case in 0..200_000 {
             // |v| from 2⁻³² to 2³¹: a random mantissa at a random binary exponent.
