@@ -35,10 +35,10 @@
 use core::f32::consts::PI;
 
 use model::control::schedule::{
-    CONTACT_TORQUE_NM, COULOMB_RAMP_RAD_S, CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM,
-    FREE_PLAY_SWITCH_NM, IMPACT_SPEED_FRACTION, OBSERVER_RATIO, RESISTANCE_LOW,
-    RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM, REST_ZONE_FREE_PLAYS,
-    TORQUE_FEEDBACK_CORNER,
+    CONTACT_CURRENT_TOLERANCE, CONTACT_TORQUE_NM, COULOMB_RAMP_RAD_S,
+    CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM, IMPACT_SPEED_FRACTION,
+    OBSERVER_RATIO, RESISTANCE_LOW, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM,
+    REST_ZONE_FREE_PLAYS, TORQUE_FEEDBACK_CORNER,
 };
 use model::control::{dash, Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
@@ -127,6 +127,7 @@ pub struct FloatSchedule {
     w_bias_per_amp: f32,
     impact_speed: f32,
     contact_torque: f32,
+    contact_per_amp: f32,
     obs_beta: f32,
     obs_beta2: f32,
     torque_lp_beta: f32,
@@ -218,6 +219,7 @@ impl FloatSchedule {
                 * i32f32(sched.torque_limit().to_bits())
                 / libm::sqrtf(k * j_g * j_l / j),
             contact_torque: i32f32(CONTACT_TORQUE_NM.to_bits()),
+            contact_per_amp: i32f32(CONTACT_CURRENT_TOLERANCE.to_bits()) * kt,
             obs_beta: 2.0 * w_c / OBSERVER_RATIO as f32 * DT,
             obs_beta2: (w_c / OBSERVER_RATIO as f32) * (w_c / OBSERVER_RATIO as f32) * DT,
             torque_lp_beta: i32f32(TORQUE_FEEDBACK_CORNER.to_bits()) * w_c * DT,
@@ -615,7 +617,6 @@ pub struct FloatController {
     w_ref: f32,
     w_gear_prev: f32,
     i_filtered: f32,
-    contact: i8,
     integ: f32,
     duty_prev: i16,
     defl_prev: f32,
@@ -648,7 +649,6 @@ impl FloatController {
             w_ref: 0.0,
             w_gear_prev: 0.0,
             i_filtered: 0.0,
-            contact: 0,
             integ: 0.0,
             duty_prev: 0,
             defl_prev: 0.0,
@@ -705,7 +705,6 @@ impl FloatController {
         self.w_ref = 0.0;
         self.w_gear_prev = 0.0;
         self.i_filtered = 0.0;
-        self.contact = 0;
         self.integ = 0.0;
         self.duty_prev = 0;
         self.defl_valid = false;
@@ -866,17 +865,13 @@ impl FloatController {
             hi = v;
             lo = v;
         }
-        if tau > s.contact_torque {
-            self.contact = 1;
-        } else if tau < -s.contact_torque {
-            self.contact = -1;
-        }
+        let contact_bound = s.contact_torque + s.contact_per_amp * libm::fabsf(current);
         let closing = w_gear - self.w_link;
         let zero_current = emf.clamp(lo, hi);
-        if self.contact <= 0 && closing > s.impact_speed {
+        if tau <= contact_bound && closing > s.impact_speed {
             hi = hi.min(zero_current);
         }
-        if self.contact >= 0 && closing < -s.impact_speed {
+        if tau >= -contact_bound && closing < -s.impact_speed {
             lo = lo.max(zero_current);
         }
         let mut u = u;

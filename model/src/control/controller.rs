@@ -127,9 +127,6 @@ pub struct Controller {
     w_gear_prev: i32,
     /// Motor current through the derivative filter (torque estimate), A Q16.
     i_filtered: i32,
-    /// Side of the free play the beams last carried torque on: +1 (gear pushes the link
-    /// positive), −1, or 0 (not known yet).
-    contact: i8,
     /// Integrator, duty ‰ in Q32 (I32F32 bits).
     integ: i64,
     duty_prev: i16,
@@ -176,7 +173,6 @@ impl Controller {
             w_ref: 0,
             w_gear_prev: 0,
             i_filtered: 0,
-            contact: 0,
             integ: 0,
             duty_prev: 0,
             defl_prev: 0,
@@ -291,7 +287,6 @@ impl Controller {
         self.w_ref = 0;
         self.w_gear_prev = 0;
         self.i_filtered = 0;
-        self.contact = 0;
         self.integ = 0;
         self.duty_prev = 0;
         self.defl_valid = false;
@@ -541,22 +536,24 @@ impl Controller {
             hi = v;
             lo = v;
         }
-        // Free-play impacts: the beams last carried torque on side `contact`; current the
-        // other way drives the gear across the free play, and beyond the impact speed it
-        // would hit the link with more than τ_lim. Above that relative speed no more
-        // current that way (the zero-current duty is the back-EMF's).
-        if tau > s.contact_torque_q16 {
-            self.contact = 1;
-        } else if tau < -s.contact_torque_q16 {
-            self.contact = -1;
-        }
+        // Free-play impacts: current that drives the gear across the free play beyond the
+        // impact speed would hit the link with more than τ_lim; above that relative speed
+        // no more current that way (the zero-current duty is the back-EMF's). Only where the
+        // beams carry torque now, on the side of τ̂, may the gear close on the link: a
+        // bouncing link leaves the wall it was pushed by, and the gear's next push would hit
+        // it. The bound carries the current-based estimate's error, which grows with |i|
+        // (design §11, "Free-play impacts").
         let closing = w_gear.saturating_sub(self.w_link);
-        let zero_current = emf.clamp(lo, hi);
-        if self.contact <= 0 && closing > s.impact_speed_q16 {
-            hi = hi.min(zero_current);
-        }
-        if self.contact >= 0 && closing < -s.impact_speed_q16 {
-            lo = lo.max(zero_current);
+        if closing.saturating_abs() > s.impact_speed_q16 {
+            let contact_bound = s
+                .contact_torque_q16
+                .saturating_add(s.contact_per_amp.apply(current.saturating_abs()));
+            let zero_current = emf.clamp(lo, hi);
+            if closing > 0 && tau <= contact_bound {
+                hi = hi.min(zero_current);
+            } else if closing < 0 && tau >= -contact_bound {
+                lo = lo.max(zero_current);
+            }
         }
         // Braking governor (raw steps and other jumps of a stationary reference): when
         // the gear approaches the target faster than the available deceleration a_b can

@@ -33,6 +33,9 @@ pub const BRAKE_FRACTION: I32F32 = I32F32::lit("0.5");
 pub const FREE_PLAY_SWITCH_NM: I32F32 = I32F32::lit("1");
 /// Coupling torque beyond which the beams count as carrying torque on one side, N·m.
 pub const CONTACT_TORQUE_NM: I32F32 = I32F32::lit("0.05");
+/// Error of the current-based torque estimate k_t·i − J_g·ω̇_g as a fraction of k_t·|i|:
+/// k_t ±10 % and J_g ±25 % (docs/design.md §9) while the gear alone takes the current.
+pub const CONTACT_CURRENT_TOLERANCE: I32F32 = I32F32::lit("0.25");
 /// Armature-resistance error the back-EMF observer's dead bands allow for, as a fraction
 /// of the configured R: copper from cold to hot (+40 %, docs/design.md §9). With R off by ΔR
 /// the observer reads ω_g + ΔR·i/k_e.
@@ -122,6 +125,8 @@ pub struct Schedule {
     /// |τ̂| above which the beams are taken to be in contact on the side of τ̂'s sign,
     /// N·m Q16 (`CONTACT_TORQUE_NM`).
     pub(crate) contact_torque_q16: i32,
+    /// Growth of that bound with |i|: `CONTACT_CURRENT_TOLERANCE`·k_t, N·m per A.
+    pub(crate) contact_per_amp: Gain,
     pub(crate) kd: Gain,
     /// dt = 1 ms (rad/s → rad per tick, applied wide) and the complementary filter's
     /// pull β = ω_o·dt per tick.
@@ -435,6 +440,7 @@ impl Schedule {
                 wide(IMPACT_SPEED_FRACTION),
             )?)?,
             contact_torque_q16: to_q16(wide(CONTACT_TORQUE_NM))?,
+            contact_per_amp: to_gain(mul(wide(CONTACT_CURRENT_TOLERANCE), kt)?)?,
             kd: to_gain(wide(gains.kd))?,
             dt: to_gain(dt)?,
             obs_beta: to_gain(
