@@ -166,7 +166,7 @@ impl fmt::Display for Case {
         }
         for o in self.plant.iter() {
             match o.value {
-                Value::Absolute(v) => write!(f, ", {}={v}{}", o.param.name(), o.param.unit())?,
+                Value::Absolute(_) => write!(f, ", {o}")?,
                 Value::Factor(x) => write!(f, ", {}=x{x:.3}", o.param.name())?,
             }
         }
@@ -179,6 +179,32 @@ fn rad(v: f64) -> Angle {
 }
 
 impl Case {
+    /// The arguments of `vsa simulate` that rerun this case exactly (every value in full
+    /// precision; `--csv FILE` added to them writes every tick of the run).
+    #[must_use]
+    pub fn simulate_args(&self) -> String {
+        let mut a = format!(
+            "--clutch-length {}mm --inertia {:e} --load={}Nm",
+            self.clutch_um as f64 / 1000.0,
+            self.link_inertia,
+            self.load_nm as f32
+        );
+        match self.motion {
+            Motion::Step(h) => a += &format!(" --step={h}rad"),
+            Motion::Move(h, ms) => a += &format!(" --move={h}rad:{ms}ms"),
+        }
+        if self.clutch_tolerance_um > 0 {
+            a += &format!(
+                " --clutch-tolerance {}mm",
+                f64::from(self.clutch_tolerance_um) / 1000.0
+            );
+        }
+        for o in self.plant.iter() {
+            a += &format!(" --plant {o}");
+        }
+        a
+    }
+
     /// The scenario: paper preset, hold 0.5 s with the load, command, run 2 s.
     #[must_use]
     pub fn scenario(&self) -> Scenario {

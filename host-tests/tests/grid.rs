@@ -5,7 +5,8 @@
 //! resistance ×0.8…×1.4, k_t and k_e ×0.9…×1.1, gear inertia ×0.8…×1.25, gear friction
 //! ×0.5…×3, supply 10.5…12.6 V, current offset ±20 counts and gain ±5 %, pot offset ±3
 //! counts, link inertia ×0.5…×3 of the configured one). Every metric's worst case is
-//! printed (`-- --nocapture`); any violation fails.
+//! printed (`-- --nocapture`) with the `vsa simulate` arguments that rerun it exactly (add
+//! `--csv FILE` for every tick); any violation fails.
 //!
 //! `VSA_GRID_RUNS=N` (default 250 per grid, 500 in all) and `VSA_GRID_SEED=S` change the
 //! draw; `VSA_GRID_MAX_LOAD=T` keeps only the drawn cases with |load| ≤ T N·m (a fast subset
@@ -112,6 +113,7 @@ fn sweep(label: &str, off_nominal: bool, seed_offset: u64) {
                 ""
             }
         );
+        println!("      rerun: vsa simulate {}", worst.case.simulate_args());
         if !bad.is_empty() && (!open || strict) {
             failed.push(*name);
         }
@@ -138,21 +140,25 @@ fn sweep(label: &str, off_nominal: bool, seed_offset: u64) {
     assert!(failed.is_empty(), "{label}: limits violated: {failed:?}");
 }
 
-/// Writes one line per case (its figures, then the case) for tuning: `VSA_GRID_DUMP=PREFIX`
-/// writes `PREFIX.SEED.tsv`.
+/// Writes one line per case (its figures, the case, the `vsa simulate` arguments that rerun
+/// it) for tuning: `VSA_GRID_DUMP=PREFIX` writes `PREFIX.SEED.tsv`.
 fn dump(path: &str, names: &[&str], outcomes: &[Outcome]) {
-    let mut text = format!("index\tload_nm\t{}\tfirst fault\tcase\n", names.join("\t"));
+    let mut text = format!(
+        "index\tload_nm\t{}\tfirst fault\tcase\tvsa simulate\n",
+        names.join("\t")
+    );
     for o in outcomes {
         let values: Vec<String> = o.figures().iter().map(|f| format!("{:.3}", f.1)).collect();
         let first = o.metrics.first_fault.map_or("-".into(), |f| {
             format!("{} {} at tick {}", f.code.name(), f.value, f.tick)
         });
         text.push_str(&format!(
-            "{}\t{:.3}\t{}\t{first}\t{}\n",
+            "{}\t{:.3}\t{}\t{first}\t{}\t{}\n",
             o.index,
             o.case.load_nm,
             values.join("\t"),
-            o.case
+            o.case,
+            o.case.simulate_args()
         ));
     }
     std::fs::write(path, text).expect("VSA_GRID_DUMP writable");
