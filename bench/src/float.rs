@@ -36,9 +36,10 @@ use core::f32::consts::PI;
 
 use model::control::schedule::{
     CONTACT_CURRENT_TOLERANCE, CONTACT_TORQUE_NM, COULOMB_RAMP_RAD_S,
-    CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM, IMPACT_SPEED_FRACTION,
-    OBSERVER_RATIO, RESISTANCE_LOW, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM,
-    REST_ZONE_FREE_PLAYS, TORQUE_FEEDBACK_CORNER,
+    CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM, HUNT_KICK_TICKS,
+    HUNT_LIMIT_TICKS, HUNT_REVERSAL_PERMILLE, IMPACT_SPEED_FRACTION, OBSERVER_RATIO,
+    RESISTANCE_LOW, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM, REST_ZONE_FREE_PLAYS,
+    TORQUE_FEEDBACK_CORNER,
 };
 use model::control::{dash, Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
@@ -618,6 +619,8 @@ pub struct FloatController {
     w_gear_prev: f32,
     i_filtered: f32,
     integ: f32,
+    hunt: u16,
+    hunting: bool,
     duty_prev: i16,
     defl_prev: f32,
     defl_valid: bool,
@@ -650,6 +653,8 @@ impl FloatController {
             w_gear_prev: 0.0,
             i_filtered: 0.0,
             integ: 0.0,
+            hunt: 0,
+            hunting: false,
             duty_prev: 0,
             defl_prev: 0.0,
             defl_valid: false,
@@ -706,6 +711,8 @@ impl FloatController {
         self.w_gear_prev = 0.0;
         self.i_filtered = 0.0;
         self.integ = 0.0;
+        self.hunt = 0;
+        self.hunting = false;
         self.duty_prev = 0;
         self.defl_valid = false;
         self.theta_g_valid = false;
@@ -835,8 +842,9 @@ impl FloatController {
         self.defl_valid = true;
 
         // --- PID ---
-        // The floating gear loop at ω_c/2 near the target or while the reference moves.
-        let (soft_p, soft_d, soft_i) = if floating && (near || !stationary) {
+        // The floating gear loop at ω_c/2 near the target or while the reference moves,
+        // and any loop that hunts at rest.
+        let (soft_p, soft_d, soft_i) = if (floating && (near || !stationary)) || self.hunting {
             (0.25, 0.5, 0.125)
         } else {
             (1.0, 1.0, 1.0)
@@ -916,6 +924,22 @@ impl FloatController {
         }
 
         let duty = libm::floorf(uc + 0.5).clamp(-1000.0, 1000.0) as i16;
+        if stationary {
+            let jump = (i32::from(duty) - i32::from(self.duty_prev)).abs();
+            self.hunt = if (duty > 0) != (self.duty_prev > 0) && jump >= HUNT_REVERSAL_PERMILLE {
+                self.hunt.saturating_add(HUNT_KICK_TICKS)
+            } else {
+                self.hunt.saturating_sub(1)
+            };
+            if self.hunt > HUNT_LIMIT_TICKS {
+                self.hunting = true;
+            } else if self.hunt == 0 {
+                self.hunting = false;
+            }
+        } else {
+            self.hunt = 0;
+            self.hunting = false;
+        }
         self.duty_prev = duty;
         FloatOutput {
             duty,

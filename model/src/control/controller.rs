@@ -7,7 +7,9 @@ use super::config::Config;
 use super::error::ControlError;
 use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Q16_ONE};
 use super::move_duration;
-use super::schedule::{Schedule, TICKS_PER_S};
+use super::schedule::{
+    Schedule, HUNT_KICK_TICKS, HUNT_LIMIT_TICKS, HUNT_REVERSAL_PERMILLE, TICKS_PER_S,
+};
 use super::sine_feedforward::FeedForward;
 use super::trajectory::{Command, Reference, Trajectory};
 use crate::design::Design;
@@ -129,6 +131,11 @@ pub struct Controller {
     i_filtered: i32,
     /// Integrator, duty ‰ in Q32 (I32F32 bits).
     integ: i64,
+    /// Hunting at rest, ticks: `HUNT_KICK_TICKS` more with each large duty reversal at a
+    /// stationary reference, one less every tick.
+    hunt: u16,
+    /// Set when `hunt` passes `HUNT_LIMIT_TICKS`, cleared when it is back to zero.
+    hunting: bool,
     duty_prev: i16,
     /// Deflection feed-forward of the previous tick, rad Q16, and whether it is valid.
     defl_prev: i32,
@@ -174,6 +181,8 @@ impl Controller {
             w_gear_prev: 0,
             i_filtered: 0,
             integ: 0,
+            hunt: 0,
+            hunting: false,
             duty_prev: 0,
             defl_prev: 0,
             torque_error_lp: 0,
@@ -288,6 +297,8 @@ impl Controller {
         self.w_gear_prev = 0;
         self.i_filtered = 0;
         self.integ = 0;
+        self.hunt = 0;
+        self.hunting = false;
         self.duty_prev = 0;
         self.defl_valid = false;
         self.theta_g_valid = false;
@@ -492,8 +503,9 @@ impl Controller {
 
         // A floating link near its target or following a moving reference: the gear loop at
         // ω_c/2 (K_p/4, K_i/8, K_d/2), so that the gear meets the link's bounces in the
-        // free play softly instead of throwing it back (design §11, step 8).
-        let soft = u32::from(floating && (near || !stationary));
+        // free play softly instead of throwing it back (design §11, step 8). The same for
+        // a loop that hunts at rest: a heavy link juggled through the free play.
+        let soft = u32::from((floating && (near || !stationary)) || self.hunting);
         // A link in contact: the P term sees the gear, not the link, above the corner. The
         // link plus the deflection the beams show, θ_l + (τ̂ − τ_ref)/k, is the gear's
         // place (collocated with the motor); the link alone, non-collocated, let a link
@@ -518,7 +530,7 @@ impl Controller {
                 } else if self.traj.is_sine() {
                     e
                 } else {
-                    e.saturating_sub(s.inv_k.apply(torque_error_hp))
+                    e.saturating_sub(s.inv_k.apply(torque_error_hp)) >> (2 * soft)
                 })
             })
             .saturating_add(u_i)
@@ -611,7 +623,7 @@ impl Controller {
             }
         } else if !floating {
             if e.saturating_abs() < s.int_band_q16 {
-                s.ki_dt.apply_wide(e)
+                s.ki_dt.apply_wide(e >> (3 * soft))
             } else {
                 0
             }
@@ -626,6 +638,24 @@ impl Controller {
         }
 
         let duty = sat_i32((i64::from(uc) + 0x8000) >> 16).clamp(-1000, 1000) as i16;
+        // Hunting at rest: large duty reversals in quick succession (design §11, "A loop
+        // that hunts at rest").
+        if stationary {
+            let jump = (i32::from(duty) - i32::from(self.duty_prev)).abs();
+            self.hunt = if (duty > 0) != (self.duty_prev > 0) && jump >= HUNT_REVERSAL_PERMILLE {
+                self.hunt.saturating_add(HUNT_KICK_TICKS)
+            } else {
+                self.hunt.saturating_sub(1)
+            };
+            if self.hunt > HUNT_LIMIT_TICKS {
+                self.hunting = true;
+            } else if self.hunt == 0 {
+                self.hunting = false;
+            }
+        } else {
+            self.hunt = 0;
+            self.hunting = false;
+        }
         self.duty_prev = duty;
         Output {
             duty,
