@@ -36,10 +36,10 @@ use core::f32::consts::PI;
 
 use model::control::schedule::{
     CONTACT_CURRENT_TOLERANCE, CONTACT_TORQUE_NM, COULOMB_RAMP_RAD_S,
-    CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM, HUNT_KICK_TICKS,
-    HUNT_LIMIT_TICKS, HUNT_REVERSAL_PERMILLE, IMPACT_SPEED_FRACTION, OBSERVER_RATIO,
-    RESISTANCE_LOW, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM, REST_ZONE_FREE_PLAYS,
-    TORQUE_FEEDBACK_CORNER,
+    CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM, HUNT_CAP_TICKS,
+    HUNT_KICK_TICKS, HUNT_LIMIT_TICKS, HUNT_REVERSAL_PERMILLE, IMPACT_SPEED_FRACTION,
+    OBSERVER_RATIO, RESISTANCE_LOW, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM,
+    REST_ZONE_FREE_PLAYS, TORQUE_FEEDBACK_CORNER,
 };
 use model::control::{dash, Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
@@ -619,7 +619,7 @@ pub struct FloatController {
     w_gear_prev: f32,
     i_filtered: f32,
     integ: f32,
-    hunt: u16,
+    hunt: i32,
     hunting: bool,
     duty_prev: i16,
     defl_prev: f32,
@@ -925,17 +925,13 @@ impl FloatController {
 
         let duty = libm::floorf(uc + 0.5).clamp(-1000.0, 1000.0) as i16;
         if stationary {
-            let jump = (i32::from(duty) - i32::from(self.duty_prev)).abs();
-            self.hunt = if (duty > 0) != (self.duty_prev > 0) && jump >= HUNT_REVERSAL_PERMILLE {
-                self.hunt.saturating_add(HUNT_KICK_TICKS)
+            let (d, p) = (i32::from(duty), i32::from(self.duty_prev));
+            self.hunt = if (d ^ p) < 0 && (d - p).abs() >= HUNT_REVERSAL_PERMILLE {
+                (self.hunt + HUNT_KICK_TICKS).min(HUNT_CAP_TICKS)
             } else {
-                self.hunt.saturating_sub(1)
+                (self.hunt - 1).max(0)
             };
-            if self.hunt > HUNT_LIMIT_TICKS {
-                self.hunting = true;
-            } else if self.hunt == 0 {
-                self.hunting = false;
-            }
+            self.hunting = self.hunt > HUNT_LIMIT_TICKS || (self.hunting && self.hunt > 0);
         } else {
             self.hunt = 0;
             self.hunting = false;

@@ -8,7 +8,8 @@ use super::error::ControlError;
 use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Q16_ONE};
 use super::move_duration;
 use super::schedule::{
-    Schedule, HUNT_KICK_TICKS, HUNT_LIMIT_TICKS, HUNT_REVERSAL_PERMILLE, TICKS_PER_S,
+    Schedule, HUNT_CAP_TICKS, HUNT_KICK_TICKS, HUNT_LIMIT_TICKS, HUNT_REVERSAL_PERMILLE,
+    TICKS_PER_S,
 };
 use super::sine_feedforward::FeedForward;
 use super::trajectory::{Command, Reference, Trajectory};
@@ -133,7 +134,7 @@ pub struct Controller {
     integ: i64,
     /// Hunting at rest, ticks: `HUNT_KICK_TICKS` more with each large duty reversal at a
     /// stationary reference, one less every tick.
-    hunt: u16,
+    hunt: i32,
     /// Set when `hunt` passes `HUNT_LIMIT_TICKS`, cleared when it is back to zero.
     hunting: bool,
     duty_prev: i16,
@@ -641,17 +642,14 @@ impl Controller {
         // Hunting at rest: large duty reversals in quick succession (design §11, "A loop
         // that hunts at rest").
         if stationary {
-            let jump = (i32::from(duty) - i32::from(self.duty_prev)).abs();
-            self.hunt = if (duty > 0) != (self.duty_prev > 0) && jump >= HUNT_REVERSAL_PERMILLE {
-                self.hunt.saturating_add(HUNT_KICK_TICKS)
+            let (d, p) = (i32::from(duty), i32::from(self.duty_prev));
+            // A reversal: opposite signs, |d − p| = |d| + |p| (both within ±1000).
+            self.hunt = if (d ^ p) < 0 && (d - p).abs() >= HUNT_REVERSAL_PERMILLE {
+                (self.hunt + HUNT_KICK_TICKS).min(HUNT_CAP_TICKS)
             } else {
-                self.hunt.saturating_sub(1)
+                (self.hunt - 1).max(0)
             };
-            if self.hunt > HUNT_LIMIT_TICKS {
-                self.hunting = true;
-            } else if self.hunt == 0 {
-                self.hunting = false;
-            }
+            self.hunting = self.hunt > HUNT_LIMIT_TICKS || (self.hunting && self.hunt > 0);
         } else {
             self.hunt = 0;
             self.hunting = false;
