@@ -34,10 +34,10 @@
 
 use core::f32::consts::PI;
 
+use model::control::hunt::Hunt;
 use model::control::schedule::{
     CONTACT_CURRENT_TOLERANCE, CONTACT_TORQUE_NM, COULOMB_RAMP_RAD_S,
-    CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM, HUNT_CAP_TICKS,
-    HUNT_KICK_TICKS, HUNT_LIMIT_TICKS, HUNT_REVERSAL_PERMILLE, IMPACT_SPEED_FRACTION,
+    CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM, IMPACT_SPEED_FRACTION,
     OBSERVER_RATIO, RESISTANCE_LOW, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM,
     REST_ZONE_FREE_PLAYS, TORQUE_FEEDBACK_CORNER,
 };
@@ -619,8 +619,7 @@ pub struct FloatController {
     w_gear_prev: f32,
     i_filtered: f32,
     integ: f32,
-    hunt: i32,
-    hunting: bool,
+    hunt: Hunt,
     duty_prev: i16,
     defl_prev: f32,
     defl_valid: bool,
@@ -653,8 +652,7 @@ impl FloatController {
             w_gear_prev: 0.0,
             i_filtered: 0.0,
             integ: 0.0,
-            hunt: 0,
-            hunting: false,
+            hunt: Hunt::NEW,
             duty_prev: 0,
             defl_prev: 0.0,
             defl_valid: false,
@@ -711,8 +709,7 @@ impl FloatController {
         self.w_gear_prev = 0.0;
         self.i_filtered = 0.0;
         self.integ = 0.0;
-        self.hunt = 0;
-        self.hunting = false;
+        self.hunt = Hunt::NEW;
         self.duty_prev = 0;
         self.defl_valid = false;
         self.theta_g_valid = false;
@@ -844,7 +841,8 @@ impl FloatController {
         // --- PID ---
         // The floating gear loop at ω_c/2 near the target or while the reference moves,
         // and any loop that hunts at rest.
-        let (soft_p, soft_d, soft_i) = if (floating && (near || !stationary)) || self.hunting {
+        let (soft_p, soft_d, soft_i) = if (floating && (near || !stationary)) || self.hunt.hunting()
+        {
             (0.25, 0.5, 0.125)
         } else {
             (1.0, 1.0, 1.0)
@@ -924,18 +922,7 @@ impl FloatController {
         }
 
         let duty = libm::floorf(uc + 0.5).clamp(-1000.0, 1000.0) as i16;
-        if stationary {
-            let (d, p) = (i32::from(duty), i32::from(self.duty_prev));
-            self.hunt = if (d ^ p) < 0 && (d - p).abs() >= HUNT_REVERSAL_PERMILLE {
-                (self.hunt + HUNT_KICK_TICKS).min(HUNT_CAP_TICKS)
-            } else {
-                (self.hunt - 1).max(0)
-            };
-            self.hunting = self.hunt > HUNT_LIMIT_TICKS || (self.hunting && self.hunt > 0);
-        } else {
-            self.hunt = 0;
-            self.hunting = false;
-        }
+        self.hunt.update(stationary, duty, self.duty_prev);
         self.duty_prev = duty;
         FloatOutput {
             duty,

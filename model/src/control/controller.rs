@@ -6,11 +6,9 @@ use fixed::types::I32F32;
 use super::config::Config;
 use super::error::ControlError;
 use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Q16_ONE};
+use super::hunt::Hunt;
 use super::move_duration;
-use super::schedule::{
-    Schedule, HUNT_CAP_TICKS, HUNT_KICK_TICKS, HUNT_LIMIT_TICKS, HUNT_REVERSAL_PERMILLE,
-    TICKS_PER_S,
-};
+use super::schedule::{Schedule, TICKS_PER_S};
 use super::sine_feedforward::FeedForward;
 use super::trajectory::{Command, Reference, Trajectory};
 use crate::design::Design;
@@ -132,11 +130,8 @@ pub struct Controller {
     i_filtered: i32,
     /// Integrator, duty ‰ in Q32 (I32F32 bits).
     integ: i64,
-    /// Hunting at rest, ticks: `HUNT_KICK_TICKS` more with each large duty reversal at a
-    /// stationary reference, one less every tick.
-    hunt: i32,
-    /// Set when `hunt` passes `HUNT_LIMIT_TICKS`, cleared when it is back to zero.
-    hunting: bool,
+    /// Hunting at rest (large duty reversals in quick succession).
+    hunt: Hunt,
     duty_prev: i16,
     /// Deflection feed-forward of the previous tick, rad Q16, and whether it is valid.
     defl_prev: i32,
@@ -182,8 +177,7 @@ impl Controller {
             w_gear_prev: 0,
             i_filtered: 0,
             integ: 0,
-            hunt: 0,
-            hunting: false,
+            hunt: Hunt::NEW,
             duty_prev: 0,
             defl_prev: 0,
             torque_error_lp: 0,
@@ -298,8 +292,7 @@ impl Controller {
         self.w_gear_prev = 0;
         self.i_filtered = 0;
         self.integ = 0;
-        self.hunt = 0;
-        self.hunting = false;
+        self.hunt = Hunt::NEW;
         self.duty_prev = 0;
         self.defl_valid = false;
         self.theta_g_valid = false;
@@ -506,7 +499,7 @@ impl Controller {
         // ω_c/2 (K_p/4, K_i/8, K_d/2), so that the gear meets the link's bounces in the
         // free play softly instead of throwing it back (design §11, step 8). The same for
         // a loop that hunts at rest: a heavy link juggled through the free play.
-        let soft = u32::from((floating && (near || !stationary)) || self.hunting);
+        let soft = u32::from((floating && (near || !stationary)) || self.hunt.hunting());
         // A link in contact: the P term sees the gear, not the link, above the corner. The
         // link plus the deflection the beams show, θ_l + (τ̂ − τ_ref)/k, is the gear's
         // place (collocated with the motor); the link alone, non-collocated, let a link
@@ -639,21 +632,7 @@ impl Controller {
         }
 
         let duty = sat_i32((i64::from(uc) + 0x8000) >> 16).clamp(-1000, 1000) as i16;
-        // Hunting at rest: large duty reversals in quick succession (design §11, "A loop
-        // that hunts at rest").
-        if stationary {
-            let (d, p) = (i32::from(duty), i32::from(self.duty_prev));
-            // A reversal: opposite signs, |d − p| = |d| + |p| (both within ±1000).
-            self.hunt = if (d ^ p) < 0 && (d - p).abs() >= HUNT_REVERSAL_PERMILLE {
-                (self.hunt + HUNT_KICK_TICKS).min(HUNT_CAP_TICKS)
-            } else {
-                (self.hunt - 1).max(0)
-            };
-            self.hunting = self.hunt > HUNT_LIMIT_TICKS || (self.hunting && self.hunt > 0);
-        } else {
-            self.hunt = 0;
-            self.hunting = false;
-        }
+        self.hunt.update(stationary, duty, self.duty_prev);
         self.duty_prev = duty;
         Output {
             duty,

@@ -40,6 +40,7 @@ pub mod controller;
 pub mod dash;
 pub mod error;
 pub mod gain;
+pub mod hunt;
 pub mod impedance;
 pub mod move_duration;
 pub mod schedule;

@@ -62,21 +62,6 @@ pub const IMPACT_SPEED_FRACTION: I32F32 = I32F32::lit("0.6");
 /// of heavy links overshot more.
 pub const TORQUE_FEEDBACK_CORNER: I32F32 = I32F32::lit("2");
 
-/// A loop hunts at rest when the duty reverses by at least this much, ‰, in quick
-/// succession (docs/design.md §11, "A loop that hunts at rest"): a heavy link juggled
-/// through the free play swings it ±600…±900 ‰ at 10–12 Hz, a settling loop does not.
-pub const HUNT_REVERSAL_PERMILLE: i32 = 300;
-/// Ticks each such reversal adds to the hunting count (which loses one a tick).
-pub const HUNT_KICK_TICKS: i32 = 100;
-/// Count above which the loop runs soft (ω_c/2) until the count is back to zero: three
-/// reversals within about 50 ms, four within 150 ms. Measured on the acceptance grid's
-/// six extra seeds with 200 / 300 ‰ and 150 / 250 / 350 ticks: within a few runs of
-/// each other.
-pub const HUNT_LIMIT_TICKS: i32 = 250;
-/// Ceiling of the hunting count: a loop that hunted for long is calm again this many ticks
-/// after its last reversal at most.
-pub const HUNT_CAP_TICKS: i32 = 1000;
-
 /// Crossover of the gear-angle complementary filter: ω_o = ω_c / `OBSERVER_RATIO`.
 pub const OBSERVER_RATIO: i32 = 3;
 
