@@ -922,7 +922,7 @@ impl FloatController {
         }
 
         let duty = libm::floorf(uc + 0.5).clamp(-1000.0, 1000.0) as i16;
-        self.hunt.update(stationary, duty, self.duty_prev);
+        self.hunt.update(stationary, duty);
         self.duty_prev = duty;
         FloatOutput {
             duty,

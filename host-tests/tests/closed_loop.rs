@@ -188,9 +188,10 @@ fn written_case(
 
 /// A heavy link under load juggled through the free play at rest: the loop strikes the
 /// link each time it lands on the gear and throws it past the target (1 675 and 1 713 ‰
-/// of duty span, 20 and 26 counts). Large duty reversals in quick succession switch the
-/// loop to ω_c/2 until it has been calm for a while, and the link settles on the gear
-/// (design §11, "A loop that hunts at rest"). Two off-nominal grid cases (seeds 11 and 5),
+/// of duty span, 20 and 26 counts). Large duty swings across zero in quick succession
+/// switch the loop to ω_c/2 until it has been calm for a while, and the link settles on
+/// the gear (1 and 0 ‰, 0.79 and 0.78 σ_allow; design §11, "A loop that hunts at rest").
+/// Two off-nominal grid cases (seeds 11 and 5),
 /// their draws written out in full.
 #[test]
 fn a_loop_that_hunts_at_rest_softens_and_the_link_settles() {

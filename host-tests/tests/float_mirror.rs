@@ -183,7 +183,7 @@ fn heavier_link_holds_track_each_other() {
 /// juggles through the free play (off-nominal grid, seed 5 #99; the port without it swings
 /// 20 counts and 1 400 ‰ over the last 500 ms) rests in both loops. Each is its own closed
 /// loop, so they need not rest at the same count (measured: the fixed-point loop's link
-/// spans 1.99 counts and its duty 14 ‰ over the last 500 ms, the port's 0.01 and 1).
+/// spans 0.40 counts and its duty 0 ‰ over the last 500 ms, the port's 0.01 and 1).
 #[test]
 fn a_loop_that_hunts_at_rest_softens_in_both() {
     let mut config = Config::paper(Length::from_micro(3_377_000).unwrap());

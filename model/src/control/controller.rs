@@ -632,7 +632,7 @@ impl Controller {
         }
 
         let duty = sat_i32((i64::from(uc) + 0x8000) >> 16).clamp(-1000, 1000) as i16;
-        self.hunt.update(stationary, duty, self.duty_prev);
+        self.hunt.update(stationary, duty);
         self.duty_prev = duty;
         Output {
             duty,
