@@ -191,8 +191,7 @@ fn written_case(
 /// of duty span, 20 and 26 counts). Large duty swings across zero in quick succession
 /// switch the loop to ω_c/2 until it has been calm for a while, and the link settles on
 /// the gear (1 and 0 ‰, 0.79 and 0.78 σ_allow; design §11, "A loop that hunts at rest").
-/// Two off-nominal grid cases (seeds 11 and 5),
-/// their draws written out in full.
+/// Two off-nominal grid cases (seeds 11 and 5), their draws written out in full.
 #[test]
 fn a_loop_that_hunts_at_rest_softens_and_the_link_settles() {
     let cases = [
