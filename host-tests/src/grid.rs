@@ -114,6 +114,36 @@ impl RigidActuator {
     }
 }
 
+/// Two off-nominal grid cases whose loop, before it softened when hunting at rest, juggled
+/// a heavy link under load through the free play after the command (docs/design.md §11, "A
+/// loop that hunts at rest"): seed 1000011 #130 (1 675 ‰ of duty span, 20 counts) and seed
+/// 1000005 #99 (1 713 ‰, 26 counts), their draws written out in full.
+#[must_use]
+pub fn hunting_at_rest() -> [Case; 2] {
+    [
+        Case::written(
+            2569,
+            1.829_930_998_542_149_8e-3,
+            0.154_895_42,
+            Motion::Step(-0.207_587_453_068_761_58),
+            "resistance=x0.8433387,torque-constant=x1.0851988,back-emf=x0.93784875,\
+             gear-inertia=x0.8889788,gear-friction=x0.97459424,supply=11.916158V,\
+             current-offset=12.704684,current-gain=1.0185158,pot-offset=-2.7505562,\
+             link-inertia=x2.198239",
+        ),
+        Case::written(
+            3377,
+            2.429_633_758_772_207e-3,
+            -0.082_921_62,
+            Motion::Move(0.362_457_044_289_711_87, 257),
+            "resistance=x0.81517875,torque-constant=x1.040837,back-emf=x0.9948242,\
+             gear-inertia=x0.89762044,gear-friction=x2.3745553,supply=11.513018V,\
+             current-offset=16.888771,current-gain=1.0143782,pot-offset=2.721346,\
+             link-inertia=x2.0999398",
+        ),
+    ]
+}
+
 /// What a case commands.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Motion {
@@ -179,6 +209,34 @@ fn rad(v: f64) -> Angle {
 }
 
 impl Case {
+    /// A case written out: clutch length (µm), configured link inertia (kg·m²), load (N·m),
+    /// the command, and the simulated actuator's draws (`NAME=VALUE,…`, as the grid prints
+    /// them).
+    ///
+    /// # Panics
+    /// On a draw `Override::parse` rejects (a test bug).
+    #[must_use]
+    pub fn written(
+        clutch_um: i64,
+        link_inertia: f64,
+        load_nm: f64,
+        motion: Motion,
+        draws: &str,
+    ) -> Case {
+        let mut plant = Overrides::default();
+        for o in draws.split(',') {
+            plant.set(Override::parse(o.trim()).expect("override"));
+        }
+        Case {
+            clutch_um,
+            link_inertia,
+            load_nm,
+            motion,
+            plant,
+            clutch_tolerance_um: 0,
+        }
+    }
+
     /// The arguments of `vsa simulate` that rerun this case exactly (every value in full
     /// precision; `--csv FILE` added to them writes every tick of the run).
     #[must_use]

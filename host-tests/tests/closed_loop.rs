@@ -148,7 +148,7 @@ fn raw_steps_of_a_link_bouncing_in_the_free_play_stay_within_the_beams() {
         ),
     ];
     for (clutch_um, link_inertia, load_nm, step, draws) in cases {
-        let case = written_case(
+        let case = grid::Case::written(
             clutch_um,
             link_inertia,
             load_nm,
@@ -163,60 +163,15 @@ fn raw_steps_of_a_link_bouncing_in_the_free_play_stay_within_the_beams() {
     }
 }
 
-/// A grid case written out: clutch length (µm), configured link inertia (kg·m²), load
-/// (N·m), the command, and the simulated actuator's draws (`NAME=VALUE,…`).
-fn written_case(
-    clutch_um: i64,
-    link_inertia: f64,
-    load_nm: f64,
-    motion: grid::Motion,
-    draws: &str,
-) -> grid::Case {
-    let mut plant = plant::overrides::Overrides::default();
-    for o in draws.split(',') {
-        plant.set(Override::parse(o.trim()).expect("override"));
-    }
-    grid::Case {
-        clutch_um,
-        link_inertia,
-        load_nm,
-        motion,
-        plant,
-        clutch_tolerance_um: 0,
-    }
-}
-
 /// A heavy link under load juggled through the free play at rest: the loop strikes the
 /// link each time it lands on the gear and throws it past the target (1 675 and 1 713 ‰
 /// of duty span, 20 and 26 counts). Large duty swings across zero in quick succession
 /// switch the loop to ω_c/2 until it has been calm for a while, and the link settles on
 /// the gear (1 and 0 ‰, 0.79 and 0.78 σ_allow; design §11, "A loop that hunts at rest").
-/// Two off-nominal grid cases (seeds 11 and 5), their draws written out in full.
+/// The two off-nominal grid cases of `grid::hunting_at_rest`.
 #[test]
 fn a_loop_that_hunts_at_rest_softens_and_the_link_settles() {
-    let cases = [
-        written_case(
-            2569,
-            1.829_930_998_542_149_8e-3,
-            0.154_895_42,
-            grid::Motion::Step(-0.207_587_453_068_761_58),
-            "resistance=x0.8433387,torque-constant=x1.0851988,back-emf=x0.93784875,\
-             gear-inertia=x0.8889788,gear-friction=x0.97459424,supply=11.916158V,\
-             current-offset=12.704684,current-gain=1.0185158,pot-offset=-2.7505562,\
-             link-inertia=x2.198239",
-        ),
-        written_case(
-            3377,
-            2.429_633_758_772_207e-3,
-            -0.082_921_62,
-            grid::Motion::Move(0.362_457_044_289_711_87, 257),
-            "resistance=x0.81517875,torque-constant=x1.040837,back-emf=x0.9948242,\
-             gear-inertia=x0.89762044,gear-friction=x2.3745553,supply=11.513018V,\
-             current-offset=16.888771,current-gain=1.0143782,pot-offset=2.721346,\
-             link-inertia=x2.0999398",
-        ),
-    ];
-    for case in cases {
+    for case in grid::hunting_at_rest() {
         let m = sim::run(&case.scenario());
         assert_rests(&case.to_string(), &m);
         assert!(m.faults.is_empty(), "{case}: fault");

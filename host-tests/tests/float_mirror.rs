@@ -186,31 +186,11 @@ fn heavier_link_holds_track_each_other() {
 /// spans 0.40 counts and its duty 0 ‰ over the last 500 ms, the port's 0.01 and 1).
 #[test]
 fn a_loop_that_hunts_at_rest_softens_in_both() {
-    let mut config = Config::paper(Length::from_micro(3_377_000).unwrap());
-    config.link_inertia = model::Inertia::from_micro(2_429_633_759).unwrap();
-    let mut sc = Scenario::new(config, Command::Hold);
-    sc.load_nm = -0.082_921_62;
-    for o in [
-        "resistance=x0.81517875",
-        "torque-constant=x1.040837",
-        "back-emf=x0.9948242",
-        "gear-inertia=x0.89762044",
-        "gear-friction=x2.3745553",
-        "supply=11.513018V",
-        "current-offset=16.888771",
-        "current-gain=1.0143782",
-        "pot-offset=2.721346",
-        "link-inertia=x2.0999398",
-    ] {
-        sc.plant
-            .set(plant::overrides::Override::parse(o).expect("override"));
-    }
+    let case = host_tests::grid::hunting_at_rest()[1];
+    let sc = case.scenario();
     let design = Design::paper();
     let servo = Servo::new(&design, &sc.config, &SupervisorConfig::DEFAULT).unwrap();
-    let step = servo.controller().planned(Command::Move {
-        target: model::Angle::from_micro(362_457).unwrap(),
-        duration_ms: 257,
-    });
+    let step = servo.controller().planned(sc.command);
     let pair = closed_pair(&sc, |t| (t == 500).then_some(step), "seed 5 #99");
     for (name, k) in [("fixed point", 0), ("f32 port", 1)] {
         let last = |v: &[f64]| {
