@@ -35,6 +35,8 @@ pub const FREE_PLAY_SWITCH_NM: I32F32 = I32F32::lit("1");
 pub const CONTACT_TORQUE_NM: I32F32 = I32F32::lit("0.05");
 /// Error of the current-based torque estimate k_t·i − J_g·ω̇_g as a fraction of k_t·|i|:
 /// k_t ±10 % and J_g ±25 % (docs/design.md §9) while the gear alone takes the current.
+/// Measured (docs/design.md §11, "Free-play impacts"): from 0.3 up a real braking contact
+/// hides below the bound and a heavy link's raw step loses its braking current.
 pub const CONTACT_CURRENT_TOLERANCE: I32F32 = I32F32::lit("0.25");
 /// Armature-resistance error the back-EMF observer's dead bands allow for, as a fraction
 /// of the configured R: copper from cold to hot (+40 %, docs/design.md §9). With R off by ΔR
