@@ -39,7 +39,7 @@ use model::control::schedule::{
     CONTACT_CURRENT_TOLERANCE, CONTACT_TORQUE_NM, COULOMB_RAMP_RAD_S,
     CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM, IMPACT_SPEED_FRACTION,
     OBSERVER_RATIO, RESISTANCE_LOW, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM,
-    REST_ZONE_FREE_PLAYS, TORQUE_FEEDBACK_CORNER,
+    REST_ZONE_FREE_PLAYS, SUPPLY_TOLERANCE, TORQUE_FEEDBACK_CORNER,
 };
 use model::control::{dash, Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
@@ -126,6 +126,7 @@ pub struct FloatSchedule {
     int_band: f32,
     w_deadband: f32,
     w_bias_per_amp: f32,
+    w_bias_per_duty: f32,
     impact_speed: f32,
     contact_torque: f32,
     contact_per_amp: f32,
@@ -216,6 +217,7 @@ impl FloatSchedule {
             w_deadband: r * (3.0 + 2.0 * CURRENT_OFFSET_TOLERANCE_COUNTS as f32)
                 / (ke * 2.0 * ADC_COUNTS_PER_A),
             w_bias_per_amp: i32f32(RESISTANCE_TOLERANCE.to_bits()) * r / ke,
+            w_bias_per_duty: i32f32(SUPPLY_TOLERANCE.to_bits()) * v_s / 1000.0 / ke,
             impact_speed: i32f32(IMPACT_SPEED_FRACTION.to_bits())
                 * i32f32(sched.torque_limit().to_bits())
                 / libm::sqrtf(k * j_g * j_l / j),
@@ -905,9 +907,10 @@ impl FloatController {
         // --- integrator ---
         let inc = if in_count || resting {
             let slip = w_gear - r.velocity;
-            if libm::fabsf(slip) <= s.w_deadband + s.w_bias_per_amp * libm::fabsf(current)
-                || !stationary
-            {
+            let band = s.w_deadband
+                + s.w_bias_per_amp * libm::fabsf(current)
+                + s.w_bias_per_duty * libm::fabsf(f32::from(applied));
+            if libm::fabsf(slip) <= band || !stationary {
                 0.0
             } else {
                 -s.kp_dt * slip

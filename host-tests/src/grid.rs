@@ -144,6 +144,38 @@ pub fn hunting_at_rest() -> [Case; 2] {
     ]
 }
 
+/// Two off-nominal grid cases of seed 1000001, a warm motor (resistance ×1.35 and ×1.39) on
+/// a sagging supply (10.6 and 10.8 V against 12 V configured) holding a load after a move,
+/// whose gear hold, before its dead band allowed for the supply error, chased the back-EMF
+/// observer's bias and flickered the link across a count boundary (docs/design.md §11, "The
+/// actuator is not the model"): #122 (180 ‰ of duty span, 19.9 % overshoot) and #150
+/// (116 ‰), their draws written out in full.
+#[must_use]
+pub fn warm_motor_on_a_sagging_supply() -> [Case; 2] {
+    [
+        Case::written(
+            3008,
+            1.276_640_717_646_918_3e-3,
+            0.272_423_03,
+            Motion::Move(0.411_944_894_830_454_43, 202),
+            "resistance=x1.3452387,torque-constant=x0.9051391,back-emf=x0.97995925,\
+             gear-inertia=x1.1963098,gear-friction=x1.8730726,supply=10.580729V,\
+             current-offset=-1.3152374,current-gain=0.9576079,pot-offset=-2.2641647,\
+             link-inertia=x1.8864825",
+        ),
+        Case::written(
+            3639,
+            4.642_049_091_322_220_5e-4,
+            -0.123_864_956,
+            Motion::Move(-0.263_066_857_306_612_5, 186),
+            "resistance=x1.3945637,torque-constant=x0.99609184,back-emf=x0.91411453,\
+             gear-inertia=x0.9008081,gear-friction=x0.9020554,supply=10.766346V,\
+             current-offset=-13.479754,current-gain=0.9722682,pot-offset=-2.6208913,\
+             link-inertia=x0.60150933",
+        ),
+    ]
+}
+
 /// What a case commands.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Motion {

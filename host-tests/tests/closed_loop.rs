@@ -178,6 +178,17 @@ fn a_loop_that_hunts_at_rest_softens_and_the_link_settles() {
     }
 }
 
+/// The two off-nominal grid cases of `grid::warm_motor_on_a_sagging_supply`.
+#[test]
+fn a_warm_motor_on_a_sagging_supply_holds_still_under_load() {
+    for case in grid::warm_motor_on_a_sagging_supply() {
+        let m = sim::run(&case.scenario());
+        assert_rests(&case.to_string(), &m);
+        assert!(m.overshoot_pct <= 5.0, "{case}: overshoot");
+        assert!(m.faults.is_empty(), "{case}: fault");
+    }
+}
+
 #[test]
 fn step_without_gear_pot() {
     for l in [1, 3, 5] {

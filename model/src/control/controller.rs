@@ -602,15 +602,17 @@ impl Controller {
         // unmeasurable, but a creeping gear is not: it integrates −K_p·(ω_g − ṙ), i.e. holds
         // the gear where it is with the stiffness K_p, so an imperfect integrator value
         // cannot let the link creep out of the count. Its dead band is the observer's
-        // resolution and bias bound (current offset, and R error × |i|): a hold that
-        // chased the bias of a warm motor under load hunted.
+        // resolution and bias bound (current offset, R error × |i|, supply error × |duty|):
+        // a hold that chased the bias of a warm motor, or of a sagging supply, under load
+        // hunted (design §11, "The actuator is not the model").
         let inc = if in_count || resting {
             let slip = w_gear.saturating_sub(r.velocity_q16);
             // Only for a stationary reference: a moving one asks the gear for ṙ plus the
             // deflection's rate (−ṙ at a sine's coupling resonance), and the slip
             // integrated whenever the link crossed the reference's count kicked the hold
             // off by several mrad (design §11, step 8).
-            if slip.saturating_abs() <= dead_band || !stationary {
+            let band = dead_band.saturating_add(s.w_bias_per_duty.apply(i32::from(applied).abs()));
+            if slip.saturating_abs() <= band || !stationary {
                 0
             } else {
                 -s.kp_dt.apply_wide(slip)

@@ -42,6 +42,12 @@ pub const CONTACT_CURRENT_TOLERANCE: I32F32 = I32F32::lit("0.25");
 /// of the configured R: copper from cold to hot (+40 %, docs/design.md §9). With R off by ΔR
 /// the observer reads ω_g + ΔR·i/k_e.
 pub const RESISTANCE_TOLERANCE: I32F32 = I32F32::lit("0.4");
+/// Supply-voltage error the gear hold's dead band allows for, as a fraction of the
+/// configured supply: a 12 V supply that sags to 10.5 V (docs/design.md §9). With V_s off by
+/// ΔV the back-EMF observer reads ω_g + ΔV·duty/k_e. Not in the braking governor's band:
+/// measured, that let a heavy link's hold limit-cycle (docs/design.md §11, "The actuator is
+/// not the model").
+pub const SUPPLY_TOLERANCE: I32F32 = I32F32::lit("0.125");
 /// Lowest armature resistance the current window allows for, as a fraction of the
 /// configured R: copper colder than configured (×0.8, docs/design.md §9). The window about
 /// the back-EMF is (1000/V_s)·R·i wide in duty, and the current it lets through is that
@@ -121,6 +127,9 @@ pub struct Schedule {
     /// Growth of that dead band with |i|: the observer's bias from a resistance error,
     /// `RESISTANCE_TOLERANCE`·R/k_e, rad/s per A.
     pub(crate) w_bias_per_amp: Gain,
+    /// Growth of the gear hold's dead band with |duty|: the observer's bias from a supply
+    /// error, `SUPPLY_TOLERANCE`·V_s/(1000·k_e) rad/s per ‰; integer ‰ in, rad/s Q16 out.
+    pub(crate) w_bias_per_duty: Gain,
     /// Gear speed relative to the link above which the current may not drive the gear
     /// further across the free play (impact torque τ_lim, see `impact_speed`), rad/s Q16.
     pub(crate) impact_speed_q16: i32,
@@ -437,6 +446,13 @@ impl Schedule {
                 mul(ke, I64F64::from_num(2 * i32::from(ADC_COUNTS_PER_A)))?,
             )?)?,
             w_bias_per_amp: to_gain(div(mul(wide(RESISTANCE_TOLERANCE), r)?, ke)?)?,
+            w_bias_per_duty: to_gain(mul(
+                div(
+                    mul(wide(SUPPLY_TOLERANCE), p.supply)?,
+                    mul(ke, I64F64::from_num(1000))?,
+                )?,
+                I64F64::from_num(Q16_ONE),
+            )?)?,
             impact_speed_q16: to_q16(mul(
                 impact_speed(&p, stiffness, tau_lim)?,
                 wide(IMPACT_SPEED_FRACTION),
