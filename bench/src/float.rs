@@ -333,6 +333,12 @@ pub struct FloatDashLimits {
     pub ff_vel: f32,
     /// Rigid feed-forward, ‰ per rad/s².
     pub ff_acc: f32,
+    /// `CONTACT_FRACTION`·(torque per ‰)/J_l, rad/s² per ‰ of held duty.
+    pub accel_per_held: f32,
+    /// Steps shorter than this are small, rad (`SMALL_STEP_FREE_PLAYS`·φ_b).
+    pub small_step: f32,
+    /// The least held duty a small step keeps the beams on one wall for, ‰.
+    pub held_min: f32,
 }
 
 /// The reference generator in f32 (hold, raw step, minimum-jerk move, sine).
@@ -435,9 +441,25 @@ impl FloatTrajectory {
     /// integrator; a jump where the limits leave no acceleration.
     pub fn step(&mut self, target: f32, l: &FloatDashLimits, hold: f32) {
         let sign = if target >= self.pos { 1.0 } else { -1.0 };
-        let accel = l.current_fraction * (l.current_duty - hold * sign) / l.ff_acc;
-        let brake = l.current_fraction * (l.current_duty + hold * sign) / l.ff_acc;
+        let mut accel = l.current_fraction * (l.current_duty - hold * sign) / l.ff_acc;
+        let mut brake = l.current_fraction * (l.current_duty + hold * sign) / l.ff_acc;
         let top = l.voltage_fraction * (l.duty_lim - hold * sign) / l.ff_vel;
+        let h = libm::fabsf(target - self.pos);
+        if accel > 0.0
+            && brake > 0.0
+            && top > 0.0
+            && h < l.small_step
+            && libm::fabsf(hold) >= l.held_min
+        {
+            // The beams stay on the wall the held load presses them against.
+            let lim =
+                (l.accel_per_held * libm::fabsf(hold)).max(h * dash::CONTACT_FLOOR_PER_RAD as f32);
+            if hold * sign > 0.0 {
+                brake = brake.min(lim);
+            } else {
+                accel = accel.min(lim);
+            }
+        }
         if accel <= 0.0 || brake <= 0.0 || top <= 0.0 {
             self.mode = Mode::Hold;
             self.pos = target;
@@ -690,6 +712,10 @@ impl FloatController {
                     voltage_fraction: i32f32(dash::VOLTAGE_FRACTION.to_bits()),
                     ff_vel: s.ff_vel,
                     ff_acc: s.ff_acc,
+                    accel_per_held: i32f32(dash::CONTACT_FRACTION.to_bits()) * s.torque_per_duty
+                        / s.j_link,
+                    small_step: dash::SMALL_STEP_FREE_PLAYS as f32 * s.free_play,
+                    held_min: s.float_load / 2.0,
                 };
                 self.traj
                     .step(i32f32(target.to_bits()), &limits, self.integ);

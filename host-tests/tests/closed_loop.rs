@@ -189,6 +189,17 @@ fn a_warm_motor_on_a_sagging_supply_holds_still_under_load() {
     }
 }
 
+/// The three nominal grid cases of `grid::small_raw_steps_under_a_light_load`.
+#[test]
+fn small_raw_steps_under_a_light_load_keep_the_beams_on_one_wall() {
+    for case in grid::small_raw_steps_under_a_light_load() {
+        let m = sim::run(&case.scenario());
+        assert_rests(&case.to_string(), &m);
+        assert!(m.overshoot_pct <= 5.0, "{case}: overshoot");
+        assert!(m.faults.is_empty(), "{case}: fault");
+    }
+}
+
 #[test]
 fn step_without_gear_pot() {
     for l in [1, 3, 5] {

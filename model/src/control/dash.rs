@@ -25,6 +25,11 @@
 //! the duty limit in the step's direction (an actuator slower than configured), the speed
 //! holds instead of growing: the reference runs no faster than the link follows.
 //!
+//! A small step (shorter than `SMALL_STEP_FREE_PLAYS`·φ_b) under a held load asks, in the
+//! phase the load helps, no more than `CONTACT_FRACTION` of the load's own acceleration of
+//! the link, and no less than `CONTACT_FLOOR_PER_RAD` per rad of step: the beams stay on
+//! one wall instead of letting the link cross the free play near the target.
+//!
 //! Formats: speeds Q16 rad/s, accelerations Q16 rad/s², positions I32F32 rad bits.
 
 use super::gain::{q32_to_q16, sat_i32, Gain};
@@ -50,7 +55,23 @@ pub struct DashGains {
     pub(crate) top_per_duty: Gain,
     /// dt/τ_m = dt·ff_vel/ff_acc per tick (the voltage-limited approach to s_top).
     pub(crate) beta: Gain,
+    /// `CONTACT_FRACTION`·(torque per ‰)/J_l: the link acceleration a fraction of the held
+    /// load gives the configured link, rad/s² per ‰ of held duty.
+    pub(crate) accel_per_held: Gain,
 }
+
+/// A small step's phase that its load helps asks at most this fraction of the load's own
+/// acceleration of the configured link, τ_L/J_l: the beams then stay pressed on one wall
+/// for links up to 1/0.35 ≈ 2.9 times the configured one. Measured on the acceptance grid
+/// (six seeds, docs/design.md §11, "Small raw steps"): 0.5 lost two of the overshoots it
+/// saves at 0.35, 1.0 nearly all.
+pub const CONTACT_FRACTION: fixed::types::I32F32 = fixed::types::I32F32::lit("0.35");
+/// Steps shorter than this many free plays φ_b are small: one crossing of the free play,
+/// 2·φ_b, is then more than 5 % of the step.
+pub const SMALL_STEP_FREE_PLAYS: i32 = 40;
+/// The least acceleration of that phase per rad of step, 1/s²: it takes at most √(2/70) =
+/// 0.17 s, whatever the load.
+pub const CONTACT_FLOOR_PER_RAD: i32 = 70;
 
 /// `num / den` for Q32 `num` ≥ 0 and Q16 `den` > 0, as Q16 (rounded down, saturating; 0 for
 /// `den` ≤ 0), through a 32-bit division (one `UDIV` on Cortex-M3/M4, where a 64-bit
@@ -121,6 +142,27 @@ impl Dash {
         if accel <= 0 || brake <= 0 || top <= 0 {
             return None;
         }
+        // A small step under a held load keeps the beams on the wall the load presses them
+        // against: where the load helps (braking when it pulls against the step,
+        // accelerating when it pulls along), the link follows the gear only as fast as the
+        // load alone moves it, τ_L/J_l; asked for more, it leaves that wall, crosses the
+        // free play and is caught on the other one, a count or more past the target.
+        let h = q32_to_q16(target.saturating_sub(position)).saturating_abs();
+        let (accel, brake) = if h < sched.free_play_q16.saturating_mul(SMALL_STEP_FREE_PLAYS)
+            && hold.saturating_abs() >= sched.float_load_q16 / 2
+        {
+            let lim = g
+                .accel_per_held
+                .apply(hold.saturating_abs())
+                .max(h.saturating_mul(CONTACT_FLOOR_PER_RAD));
+            if hold > 0 {
+                (accel, brake.min(lim))
+            } else {
+                (accel.min(lim), brake)
+            }
+        } else {
+            (accel, brake)
+        };
         Some(Dash {
             target,
             sign,
@@ -203,7 +245,62 @@ impl Dash {
 
 #[cfg(test)]
 mod tests {
-    use super::div_q32_by_q16;
+    use super::{div_q32_by_q16, Dash};
+    use crate::control::{Config, Schedule};
+    use crate::design::Design;
+    use crate::units::Length;
+
+    /// A small step's phase that the held load helps is planned at 0.35 of the load's
+    /// acceleration of the configured link (not below 70 rad/s² per rad); the other phase,
+    /// and a large step, keep the current-limited plan. Oracle: the motor's datasheet
+    /// values in f64, τ_L = held‰/1000·V_s·k_t/R.
+    #[test]
+    fn a_small_step_asks_no_more_than_the_held_load_gives_the_link() {
+        let cfg = Config::paper(Length::from_int(3));
+        let sched = Schedule::new(&Design::paper(), &cfg).unwrap();
+        let m = cfg.motor;
+        let (v, r, kt) = (
+            m.supply_v.to_num::<f64>(),
+            m.resistance_ohm.to_num::<f64>(),
+            m.torque_constant.to_num::<f64>(),
+        );
+        let j_l = cfg.link_inertia.get().to_num::<f64>() * 1e-6;
+        let q16 = |x: i32| f64::from(x) / 65536.0;
+        let plan = |h: f64, held: f64| {
+            Dash::plan(
+                &sched,
+                0,
+                0,
+                (h * 2f64.powi(32)) as i64,
+                (held * 65536.0) as i32,
+            )
+            .unwrap()
+        };
+        let free = plan(0.1, 0.0);
+        for held in [60.0, 120.0] {
+            let tau = held / 1000.0 * v * kt / r;
+            let want = (0.35 * tau / j_l).max(70.0 * 0.1);
+            // The load pulls against the step: braking is the phase it helps.
+            let against = plan(0.1, held);
+            assert!(
+                (q16(against.brake) - want).abs() < 1e-3 * want,
+                "{held}: {}",
+                q16(against.brake)
+            );
+            assert!(q16(against.accel) < q16(free.accel));
+            // The load pulls along the step (the integrator holds against it): accelerating.
+            let along = plan(-0.1, held);
+            assert!(
+                (q16(along.accel) - want).abs() < 1e-3 * want,
+                "{held}: {}",
+                q16(along.accel)
+            );
+            assert!(q16(along.brake) < q16(free.brake));
+            // A large step keeps the current-limited plan.
+            assert!(q16(plan(0.3, held).brake) > 1.2 * q16(against.brake));
+            assert!(q16(plan(-0.3, held).accel) > 1.2 * q16(along.accel));
+        }
+    }
 
     #[test]
     fn the_narrow_division_matches_the_wide_one() {

@@ -417,6 +417,13 @@ impl Schedule {
             accel_per_duty: to_gain(div(wide(dash::CURRENT_FRACTION), ff_acc)?)?,
             top_per_duty: to_gain(div(wide(dash::VOLTAGE_FRACTION), ff_vel)?)?,
             beta: to_gain(mul(div(ff_vel, ff_acc)?, dt)?)?,
+            accel_per_held: to_gain(div(
+                mul(
+                    wide(dash::CONTACT_FRACTION),
+                    div(p.torque_per_volt, duty_per_volt)?,
+                )?,
+                p.j_link,
+            )?)?,
         };
         let move_accel_per_duty =
             to_gain(div(wide(move_duration::MOVE_CURRENT_FRACTION), ff_acc)?)?;
