@@ -313,6 +313,9 @@ enum Mode {
         top: f32,
         beta: f32,
         braking: f32,
+        drive_actual: f32,
+        drive_model: f32,
+        brake_scaled: f32,
     },
 }
 
@@ -476,7 +479,28 @@ impl FloatTrajectory {
             top,
             beta: l.ff_vel / l.ff_acc * DT,
             braking: 0.0,
+            drive_actual: 0.0,
+            drive_model: 0.0,
+            brake_scaled: 0.0,
         };
+    }
+
+    /// A raw step's drive in this tick (`model::control::dash`): the output's acceleration
+    /// part and the rigid model's r̈ feed-forward, ‰.
+    pub fn drive(&mut self, actual: f32, model: f32) {
+        if let Mode::Dash {
+            sign,
+            drive_actual,
+            drive_model,
+            brake_scaled,
+            ..
+        } = &mut self.mode
+        {
+            if *brake_scaled == 0.0 && model * *sign > 0.0 {
+                *drive_actual += actual * *sign;
+                *drive_model += model * *sign;
+            }
+        }
     }
 
     /// Advances one tick and returns the new reference.
@@ -498,6 +522,9 @@ impl FloatTrajectory {
                 top,
                 beta,
                 braking,
+                drive_actual,
+                drive_model,
+                brake_scaled,
             } => {
                 let s = *speed;
                 let left = (*target - self.pos) * *sign;
@@ -510,7 +537,19 @@ impl FloatTrajectory {
                 };
                 if *braking == 0.0 && next > 0.0 && s > 0.0 {
                     let left_after = left - (s + next) * DT / 2.0;
-                    if next * next >= 2.0 * *brake * left_after.max(0.0) {
+                    let max = dash::BRAKE_SCALE_MAX as f32;
+                    if *brake_scaled == 0.0
+                        && next * next >= 2.0 * (*brake / max) * left_after.max(0.0)
+                    {
+                        *brake_scaled = if *drive_model > 0.0 && *drive_actual > *drive_model {
+                            *brake * (*drive_model / *drive_actual).max(1.0 / max)
+                        } else {
+                            *brake
+                        };
+                    }
+                    if *brake_scaled != 0.0
+                        && next * next >= 2.0 * *brake_scaled * left_after.max(0.0)
+                    {
                         *braking = (s * s / (2.0 * left.max(1.0 / 65536.0))).max(1.0 / 65536.0);
                         next = s - *braking * DT;
                     }
@@ -838,7 +877,8 @@ impl FloatController {
         self.w_ref += s.alpha * (r.velocity - self.w_ref);
 
         // --- feed-forward ---
-        let u_ff = self.ff_vel * r.velocity + self.ff_acc * r.acceleration;
+        let (u_vel, u_acc) = (self.ff_vel * r.velocity, self.ff_acc * r.acceleration);
+        let u_ff = u_vel + u_acc;
         let u_i = self.integ;
         let tau_ref = s.j_link * r.acceleration + s.torque_per_duty * u_i;
         let side = (s.fp_slope * tau_ref).clamp(-s.free_play, s.free_play);
@@ -950,6 +990,7 @@ impl FloatController {
             self.integ = (self.integ + inc).clamp(-dl, dl);
         }
 
+        self.traj.drive(uc - u_vel - u_i, u_acc);
         let duty = libm::floorf(uc + 0.5).clamp(-1000.0, 1000.0) as i16;
         self.hunt.update(stationary, duty);
         self.duty_prev = duty;

@@ -451,11 +451,9 @@ impl Controller {
             .saturating_add(s.alpha.apply(r.velocity_q16.saturating_sub(self.w_ref)));
 
         // --- feed-forward: trajectory, then free play and compliance ---
-        let u_ff = self
-            .ff
-            .vel
-            .apply(r.velocity_q16)
-            .saturating_add(self.ff.acc.apply(r.acceleration_q16));
+        let u_vel = self.ff.vel.apply(r.velocity_q16);
+        let u_acc = self.ff.acc.apply(r.acceleration_q16);
+        let u_ff = u_vel.saturating_add(u_acc);
         let tau_ref = s
             .j_link
             .apply(r.acceleration_q16)
@@ -633,6 +631,11 @@ impl Controller {
             self.integ = self.integ.saturating_add(inc).clamp(-lim, lim);
         }
 
+        // What this output spent on accelerating against what the rigid model asked: a
+        // raw step brakes for the actuator it met (design §11, "Braking for the actuator
+        // the step met").
+        self.traj
+            .drive(uc.saturating_sub(u_vel).saturating_sub(u_i), u_acc);
         let duty = sat_i32((i64::from(uc) + 0x8000) >> 16).clamp(-1000, 1000) as i16;
         self.hunt.update(stationary, duty);
         self.duty_prev = duty;

@@ -25,6 +25,10 @@
 //! the duty limit in the step's direction (an actuator slower than configured), the speed
 //! holds instead of growing: the reference runs no faster than the link follows.
 //!
+//! The braking deceleration is lowered by the ratio of the drive the model asked for to the
+//! drive the output needed while the step accelerated, once the target is within three
+//! braking distances (`BRAKE_SCALE_MAX`): a heavier link or a weaker motor brakes earlier.
+//!
 //! A small step (shorter than `SMALL_STEP_FREE_PLAYS`·φ_b) under a held load asks, in the
 //! phase the load helps, no more than `CONTACT_FRACTION` of the load's own acceleration of
 //! the link, and no less than `CONTACT_FLOOR_PER_RAD` per rad of step: the beams stay on
@@ -32,7 +36,7 @@
 //!
 //! Formats: speeds Q16 rad/s, accelerations Q16 rad/s², positions I32F32 rad bits.
 
-use super::gain::{q32_to_q16, sat_i32, Gain};
+use super::gain::{q32_to_q16, sat_i32, Gain, Q16_ONE};
 use super::schedule::Schedule;
 
 /// Fraction of the current headroom (the current limit less the held load) the profile's
@@ -69,6 +73,10 @@ pub const CONTACT_FRACTION: fixed::types::I32F32 = fixed::types::I32F32::lit("0.
 /// Steps shorter than this many free plays φ_b are small: one crossing of the free play,
 /// 2·φ_b, is then more than 5 % of the step.
 pub const SMALL_STEP_FREE_PLAYS: i32 = 40;
+/// The most the braking deceleration is lowered for an actuator that needed more drive to
+/// accelerate than the model: ×1/3, a link three times the configured one (docs/design.md
+/// §11, "Braking for the actuator the step met"; ×1/2 measured within a few runs).
+pub const BRAKE_SCALE_MAX: i32 = 3;
 /// The least acceleration of that phase per rad of step, 1/s²: it takes at most √(2/70) =
 /// 0.17 s, whatever the load.
 pub const CONTACT_FLOOR_PER_RAD: i32 = 70;
@@ -106,6 +114,14 @@ pub struct Dash {
     dt: Gain,
     /// The braking deceleration once braking started (0 before), rad/s² Q16.
     braking: i32,
+    /// Σ over the accelerating ticks of the output's acceleration part (duty less the
+    /// velocity feed-forward and the integrator), and of the rigid model's r̈ feed-forward,
+    /// both in the step's direction, ‰ Q16.
+    drive_actual: i64,
+    drive_model: i64,
+    /// The braking deceleration scaled by their ratio, fixed once the target is within
+    /// three braking distances (0 before), rad/s² Q16.
+    brake_scaled: i32,
 }
 
 /// One tick of the profile: position (I32F32 bits), velocity and acceleration (Q16), and
@@ -173,7 +189,40 @@ impl Dash {
             beta: g.beta,
             dt: sched.dt,
             braking: 0,
+            drive_actual: 0,
+            drive_model: 0,
+            brake_scaled: 0,
         })
+    }
+
+    /// Takes this tick's drive: `actual` the output's acceleration part, `model` the rigid
+    /// model's r̈ feed-forward (‰ Q16). Counted while the profile accelerates, until the
+    /// braking deceleration is fixed (|Σ| < 2⁴⁷ for steps of up to 2¹⁵ ticks).
+    #[inline]
+    pub(crate) fn drive(&mut self, actual: i32, model: i32) {
+        if self.brake_scaled == 0 && model.saturating_mul(self.sign) > 0 {
+            self.drive_actual += i64::from(actual.saturating_mul(self.sign));
+            self.drive_model += i64::from(model.saturating_mul(self.sign));
+        }
+    }
+
+    /// The braking deceleration for the actuator the acceleration met: a_brake·Σmodel/Σactual
+    /// where the output needed more than the model asked (a heavier link, a warm motor, a
+    /// sagging supply), not below a_brake/3; a_brake as planned otherwise. One 32-bit
+    /// division, once a step.
+    fn brake_for_drive(&self) -> i32 {
+        let (a, m) = (self.drive_actual, self.drive_model);
+        if m <= 0 || a <= m {
+            return self.brake;
+        }
+        // Both to 15 bits (m < a), the ratio in Q16 (≤ 1).
+        let sh = (64 - a.leading_zeros()).saturating_sub(15);
+        let den = (a >> sh) as i32;
+        if den <= 0 {
+            return self.brake;
+        }
+        let ratio = ((((m >> sh) as i32) << 16) / den).max(Q16_ONE / BRAKE_SCALE_MAX);
+        ((i64::from(self.brake) * i64::from(ratio)) >> 16) as i32
     }
 
     /// The step's target.
@@ -208,7 +257,16 @@ impl Dash {
             // target, a = s²/(2·d) (once per step).
             let left_after = q32_to_q16(left.saturating_sub(travel)).max(0);
             let s2 = i64::from(next) * i64::from(next); // Q32, < 2⁶²
-            if s2 >= 2 * i64::from(self.brake) * i64::from(left_after) {
+                                                        // The scaled deceleration is at least a_brake/3: until the target is within that
+                                                        // braking distance it cannot call for braking, and then it is fixed.
+            if self.brake_scaled == 0
+                && s2 >= 2 * i64::from(self.brake / BRAKE_SCALE_MAX) * i64::from(left_after)
+            {
+                self.brake_scaled = self.brake_for_drive().max(1);
+            }
+            if self.brake_scaled != 0
+                && s2 >= 2 * i64::from(self.brake_scaled) * i64::from(left_after)
+            {
                 let s2 = i64::from(s) * i64::from(s);
                 self.braking = div_q32_by_q16(s2, q32_to_q16(left).saturating_mul(2)).max(1);
                 next = s.saturating_sub(self.dt.apply(self.braking));
@@ -299,6 +357,27 @@ mod tests {
             // A large step keeps the current-limited plan.
             assert!(q16(plan(0.3, held).brake) > 1.2 * q16(against.brake));
             assert!(q16(plan(-0.3, held).accel) > 1.2 * q16(along.accel));
+        }
+    }
+
+    /// The braking deceleration is a_b·Σmodel/Σactual of the drive handed in while the step
+    /// accelerated (twice the model's drive: half the deceleration), never below a_b/3, and
+    /// a_b where the output needed less than the model.
+    #[test]
+    fn braking_follows_the_drive_the_acceleration_took() {
+        let cfg = Config::paper(Length::from_int(3));
+        let sched = Schedule::new(&Design::paper(), &cfg).unwrap();
+        for (factor, want) in [(2.0, 0.5), (5.0, 1.0 / 3.0), (0.5, 1.0)] {
+            let mut d = Dash::plan(&sched, 0, 0, 1i64 << 31, 0).unwrap();
+            let mut position = 0;
+            while d.braking == 0 {
+                let t = d.advance(position, 0);
+                position = t.position;
+                let model = 20 << 16;
+                d.drive((f64::from(model) * factor) as i32, model);
+            }
+            let got = f64::from(d.brake_scaled) / f64::from(d.brake);
+            assert!((got - want).abs() < 1e-3, "×{factor}: {got}");
         }
     }
 

@@ -213,6 +213,15 @@ impl Trajectory {
         matches!(self.mode, Mode::Sine { .. })
     }
 
+    /// A raw step's drive in this tick (`Dash::drive`): the output's acceleration part and
+    /// the rigid model's r̈ feed-forward, ‰ Q16. No effect in the other modes.
+    #[inline]
+    pub(crate) fn drive(&mut self, actual: i32, model: i32) {
+        if let Mode::Dash(d) = &mut self.mode {
+            d.drive(actual, model);
+        }
+    }
+
     /// `true` while a move is under way or a sine runs.
     #[must_use]
     pub const fn is_moving(&self) -> bool {
