@@ -541,11 +541,13 @@ impl FloatTrajectory {
                     if *brake_scaled == 0.0
                         && next * next >= 2.0 * (*brake / max) * left_after.max(0.0)
                     {
-                        *brake_scaled = if *drive_model > 0.0 && *drive_actual > *drive_model {
-                            *brake * (*drive_model / *drive_actual).max(1.0 / max)
-                        } else {
-                            *brake
-                        };
+                        let margin = dash::DRIVE_MARGIN_PERCENT as f32 / 100.0;
+                        *brake_scaled =
+                            if *drive_model > 0.0 && *drive_actual > margin * *drive_model {
+                                *brake * (*drive_model / *drive_actual).max(1.0 / max)
+                            } else {
+                                *brake
+                            };
                     }
                     if *brake_scaled != 0.0
                         && next * next >= 2.0 * *brake_scaled * left_after.max(0.0)

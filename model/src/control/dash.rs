@@ -77,6 +77,11 @@ pub const SMALL_STEP_FREE_PLAYS: i32 = 40;
 /// accelerate than the model: ×1/3, a link three times the configured one (docs/design.md
 /// §11, "Braking for the actuator the step met"; ×1/2 measured within a few runs).
 pub const BRAKE_SCALE_MAX: i32 = 3;
+/// The braking is scaled only where the acceleration took more than this share of the
+/// model's drive, per cent: a nominal actuator's output also carries the gear friction's and
+/// the deflection's feed-forward and the PID's part, and a 0.5 rad step at L = 3 mm kept
+/// its 152 ms (without the margin 156 ms, docs/design.md §11).
+pub const DRIVE_MARGIN_PERCENT: i64 = 125;
 /// The least acceleration of that phase per rad of step, 1/s²: it takes at most √(2/70) =
 /// 0.17 s, whatever the load.
 pub const CONTACT_FLOOR_PER_RAD: i32 = 70;
@@ -207,12 +212,13 @@ impl Dash {
     }
 
     /// The braking deceleration for the actuator the acceleration met: a_brake·Σmodel/Σactual
-    /// where the output needed more than the model asked (a heavier link, a warm motor, a
-    /// sagging supply), not below a_brake/3; a_brake as planned otherwise. One 32-bit
-    /// division, once a step.
+    /// where the output needed more than `DRIVE_MARGIN_PERCENT` of what the model asked (a heavier link, a
+    /// warm motor, a sagging supply), not below a_brake/3; a_brake as planned otherwise (the
+    /// gear friction and the deflection's feed-forward are in the output's part, and a
+    /// nominal actuator's ratio stays within the margin). One 32-bit division, once a step.
     fn brake_for_drive(&self) -> i32 {
         let (a, m) = (self.drive_actual, self.drive_model);
-        if m <= 0 || a <= m {
+        if m <= 0 || a.saturating_mul(100) <= m.saturating_mul(DRIVE_MARGIN_PERCENT) {
             return self.brake;
         }
         // Both to 15 bits (m < a), the ratio in Q16 (≤ 1).
@@ -362,12 +368,12 @@ mod tests {
 
     /// The braking deceleration is a_b·Σmodel/Σactual of the drive handed in while the step
     /// accelerated (twice the model's drive: half the deceleration), never below a_b/3, and
-    /// a_b where the output needed less than the model.
+    /// a_b where the output needed less than 1.25 times the model's.
     #[test]
     fn braking_follows_the_drive_the_acceleration_took() {
         let cfg = Config::paper(Length::from_int(3));
         let sched = Schedule::new(&Design::paper(), &cfg).unwrap();
-        for (factor, want) in [(2.0, 0.5), (5.0, 1.0 / 3.0), (0.5, 1.0)] {
+        for (factor, want) in [(2.0, 0.5), (5.0, 1.0 / 3.0), (1.2, 1.0), (0.5, 1.0)] {
             let mut d = Dash::plan(&sched, 0, 0, 1i64 << 31, 0).unwrap();
             let mut position = 0;
             while d.braking == 0 {
