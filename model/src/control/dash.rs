@@ -73,18 +73,18 @@ pub const CONTACT_FRACTION: fixed::types::I32F32 = fixed::types::I32F32::lit("0.
 /// Steps shorter than this many free plays φ_b are small: one crossing of the free play,
 /// 2·φ_b, is then more than 5 % of the step.
 pub const SMALL_STEP_FREE_PLAYS: i32 = 40;
+/// The least acceleration of that phase per rad of step, 1/s²: it takes at most √(2/70) =
+/// 0.17 s, whatever the load.
+pub const CONTACT_FLOOR_PER_RAD: i32 = 70;
 /// The most the braking deceleration is lowered for an actuator that needed more drive to
 /// accelerate than the model: ×1/3, a link three times the configured one (docs/design.md
-/// §11, "Braking for the actuator the step met"; ×1/2 measured within a few runs).
+/// §11, "Braking for the actuator the step met").
 pub const BRAKE_SCALE_MAX: i32 = 3;
 /// The braking is scaled only where the acceleration took more than this share of the
 /// model's drive, per cent: a nominal actuator's output also carries the gear friction's and
 /// the deflection's feed-forward and the PID's part, and a 0.5 rad step at L = 3 mm kept
 /// its 152 ms (without the margin 156 ms, docs/design.md §11).
 pub const DRIVE_MARGIN_PERCENT: i64 = 125;
-/// The least acceleration of that phase per rad of step, 1/s²: it takes at most √(2/70) =
-/// 0.17 s, whatever the load.
-pub const CONTACT_FLOOR_PER_RAD: i32 = 70;
 
 /// `num / den` for Q32 `num` ≥ 0 and Q16 `den` > 0, as Q16 (rounded down, saturating; 0 for
 /// `den` ≤ 0), through a 32-bit division (one `UDIV` on Cortex-M3/M4, where a 64-bit
