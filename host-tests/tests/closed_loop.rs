@@ -127,39 +127,35 @@ fn raw_step_of_a_heavier_link_on_a_weak_supply_stays_within_the_beams() {
 /// (seeds 3 and 13), their draws written out.
 #[test]
 fn raw_steps_of_a_link_bouncing_in_the_free_play_stay_within_the_beams() {
-    let cases = [
-        (
+    assert_within_the_beams(&[
+        grid::Case::written(
             1053,
             2.89e-3,
             -0.024,
-            -0.386,
+            grid::Motion::Step(-0.386),
             "resistance=x0.943,torque-constant=x1.045,back-emf=x0.951,gear-inertia=x0.930,\
              gear-friction=x1.085,supply=12.232V,current-offset=8.692,current-gain=1.0422,\
              pot-offset=2.534,link-inertia=x1.154",
         ),
-        (
+        grid::Case::written(
             1266,
             3.36e-3,
             0.072,
-            0.415,
+            grid::Motion::Step(0.415),
             "resistance=x0.983,torque-constant=x1.001,back-emf=x0.924,gear-inertia=x1.110,\
              gear-friction=x0.790,supply=12.010V,current-offset=-15.587,current-gain=1.0400,\
              pot-offset=0.745,link-inertia=x2.398",
         ),
-    ];
-    for (clutch_um, link_inertia, load_nm, step, draws) in cases {
-        let case = grid::Case::written(
-            clutch_um,
-            link_inertia,
-            load_nm,
-            grid::Motion::Step(step),
-            draws,
-        );
+    ]);
+}
+
+/// Each case keeps the beams below σ_allow and latches no fault.
+fn assert_within_the_beams(cases: &[grid::Case]) {
+    for case in cases {
         let m = sim::run(&case.scenario());
-        let label = case.to_string();
-        println!("{}", sim::describe(&label, &m));
-        assert!(m.peak_stress_ratio < 1.0, "{label}: beams overloaded");
-        assert!(m.faults.is_empty(), "{label}: fault");
+        println!("{}", sim::describe(&case.to_string(), &m));
+        assert!(m.peak_stress_ratio < 1.0, "{case}: beams overloaded");
+        assert!(m.faults.is_empty(), "{case}: fault");
     }
 }
 
@@ -207,7 +203,7 @@ fn small_raw_steps_under_a_light_load_keep_the_beams_on_one_wall() {
 /// 1000007 #56 (1.17), their draws written out in full.
 #[test]
 fn raw_steps_of_a_heavier_link_brake_in_time_for_the_beams() {
-    let cases = [
+    assert_within_the_beams(&[
         grid::Case::written(
             1212,
             3.819_004_128_060_882_6e-3,
@@ -228,13 +224,7 @@ fn raw_steps_of_a_heavier_link_brake_in_time_for_the_beams() {
              current-offset=-12.073857,current-gain=0.98350155,pot-offset=2.4754841,\
              link-inertia=x2.2856934",
         ),
-    ];
-    for case in cases {
-        let m = sim::run(&case.scenario());
-        println!("{}", sim::describe(&case.to_string(), &m));
-        assert!(m.peak_stress_ratio < 1.0, "{case}: beams overloaded");
-        assert!(m.faults.is_empty(), "{case}: fault");
-    }
+    ]);
 }
 
 #[test]

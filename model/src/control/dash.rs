@@ -221,12 +221,10 @@ impl Dash {
         if m <= 0 || a.saturating_mul(100) <= m.saturating_mul(DRIVE_MARGIN_PERCENT) {
             return self.brake;
         }
-        // Both to 15 bits (m < a), the ratio in Q16 (≤ 1).
+        // Both to 15 bits (0 < m < a, so 2¹⁴ ≤ den < 2¹⁵ or den = a ≥ 1), the ratio in Q16
+        // (≤ 1).
         let sh = (64 - a.leading_zeros()).saturating_sub(15);
         let den = (a >> sh) as i32;
-        if den <= 0 {
-            return self.brake;
-        }
         let ratio = ((((m >> sh) as i32) << 16) / den).max(Q16_ONE / BRAKE_SCALE_MAX);
         ((i64::from(self.brake) * i64::from(ratio)) >> 16) as i32
     }
