@@ -41,7 +41,7 @@ use model::control::schedule::{
     OBSERVER_RATIO, RESISTANCE_LOW, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM,
     REST_ZONE_FREE_PLAYS, SUPPLY_TOLERANCE, TORQUE_FEEDBACK_CORNER,
 };
-use model::control::{dash, Command, Config, Schedule};
+use model::control::{dash, move_drive, Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
 use model::servo::{brakes_on, BridgeDemand, TickInput};
 use model::supervisor::{Fault, FaultCode, FaultSet, Supervisor};
@@ -695,6 +695,9 @@ pub struct FloatController {
     w_bias: f32,
     torque_error_lp: f32,
     limited: f32,
+    /// The running move's drive sums (`model::control::move_drive`): direction, Σ actual,
+    /// Σ model, and the r̈ feed-forward scale.
+    move_drive: (f32, f32, f32, f32),
 }
 
 impl FloatController {
@@ -728,6 +731,7 @@ impl FloatController {
             w_bias: 0.0,
             torque_error_lp: 0.0,
             limited: 0.0,
+            move_drive: (0.0, 0.0, 0.0, 1.0),
         }
     }
 
@@ -736,6 +740,7 @@ impl FloatController {
     /// ported).
     pub fn command(&mut self, cmd: Command) {
         let s = &self.s;
+        let from = self.traj.pos;
         (self.ff_vel, self.ff_acc) = match cmd {
             Command::Sine { frequency, .. } => {
                 let w = i32f32(frequency.to_bits());
@@ -763,6 +768,20 @@ impl FloatController {
             }
             _ => self.traj.command(cmd),
         }
+        self.move_drive = match cmd {
+            Command::Move { target, .. } => {
+                let to = i32f32(target.to_bits());
+                let dir = if to > from {
+                    1.0
+                } else if to < from {
+                    -1.0
+                } else {
+                    0.0
+                };
+                (dir, 0.0, 0.0, 1.0)
+            }
+            _ => (0.0, 0.0, 0.0, 1.0),
+        };
         self.commanded = true;
     }
 
@@ -786,6 +805,7 @@ impl FloatController {
         self.w_bias = 0.0;
         self.torque_error_lp = 0.0;
         self.limited = 0.0;
+        self.move_drive = (0.0, 0.0, 0.0, 1.0);
     }
 
     fn centred_counts(&self, raw: u16) -> i32 {
@@ -879,10 +899,12 @@ impl FloatController {
         self.w_ref += s.alpha * (r.velocity - self.w_ref);
 
         // --- feed-forward ---
-        let (u_vel, u_acc) = (self.ff_vel * r.velocity, self.ff_acc * r.acceleration);
+        let (u_vel, u_acc_model) = (self.ff_vel * r.velocity, self.ff_acc * r.acceleration);
+        let scale = self.move_drive.3;
+        let u_acc = scale * u_acc_model;
         let u_ff = u_vel + u_acc;
         let u_i = self.integ;
-        let tau_ref = s.j_link * r.acceleration + s.torque_per_duty * u_i;
+        let tau_ref = scale * s.j_link * r.acceleration + s.torque_per_duty * u_i;
         let side = (s.fp_slope * tau_ref).clamp(-s.free_play, s.free_play);
         // Hysteresis band φ₀ ± c·φ₀² (a play operator).
         let phi0 = s.inv_k * tau_ref;
@@ -993,6 +1015,25 @@ impl FloatController {
         }
 
         self.traj.drive(uc - u_vel - u_i, u_acc);
+        // A loaded move's drive against the model's: the r̈ feed-forward's scale
+        // (`model::control::move_drive`).
+        let (dir, actual, model, g) = self.move_drive;
+        if !floating && dir * u_acc_model > 0.0 && model < move_drive::SUM_STOP as f32 {
+            let (a, m) = (
+                actual + dir * (uc - u_vel - u_i - u_defl),
+                model + dir * u_acc_model,
+            );
+            let margin = dash::DRIVE_MARGIN_PERCENT as f32 / 100.0;
+            let max = move_drive::MOVE_SCALE_MAX as f32;
+            let g = if m < move_drive::MIN_MODEL_DRIVE as f32 {
+                g
+            } else if a > margin * m {
+                (a / (margin * m)).clamp(1.0, max)
+            } else {
+                1.0
+            };
+            self.move_drive = (dir, a, m, g);
+        }
         let duty = libm::floorf(uc + 0.5).clamp(-1000.0, 1000.0) as i16;
         self.hunt.update(stationary, duty);
         self.duty_prev = duty;

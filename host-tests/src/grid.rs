@@ -176,6 +176,48 @@ pub fn warm_motor_on_a_sagging_supply() -> [Case; 2] {
     ]
 }
 
+/// Three off-nominal grid cases of seed 1000001, loaded minimum-jerk moves on a warm motor
+/// (resistance ×1.22…×1.29) with a link up to 2.8× heavier than configured, whose rigid r̈
+/// feed-forward asked too little: the link fell behind and overshot when the reference
+/// stopped, before the feed-forward was scaled for the drive the move's acceleration took
+/// (docs/design.md §11, "Moves for the actuator they meet"): #8 (7.2 %), #184 (6.4 %) and
+/// #46 (5.7 %), their draws written out in full.
+#[must_use]
+pub fn loaded_moves_on_a_warm_motor() -> [Case; 3] {
+    [
+        Case::written(
+            5354,
+            1.983_957_037_778_855e-3,
+            -0.097_256_795,
+            Motion::Move(-0.126_751_791_155_241_52, 166),
+            "resistance=x1.2916569,torque-constant=x1.0058271,back-emf=x0.9063918,\
+             gear-inertia=x1.065822,gear-friction=x1.3214859,supply=11.767705V,\
+             current-offset=4.2057915,current-gain=0.998623,pot-offset=-0.97792405,\
+             link-inertia=x1.1852814",
+        ),
+        Case::written(
+            5176,
+            1.157_481_321_898_619_4e-3,
+            0.084_409_244,
+            Motion::Move(0.408_760_683_486_288_97, 212),
+            "resistance=x1.2195166,torque-constant=x0.9862295,back-emf=x0.9854562,\
+             gear-inertia=x1.0673735,gear-friction=x1.0472587,supply=12.205668V,\
+             current-offset=-1.2282817,current-gain=0.95889217,pot-offset=-0.87461406,\
+             link-inertia=x2.0011425",
+        ),
+        Case::written(
+            6542,
+            2.049_575_169_655_835_5e-3,
+            -0.194_010_3,
+            Motion::Move(-0.384_004_055_480_364, 170),
+            "resistance=x1.2672572,torque-constant=x0.966958,back-emf=x0.92124,\
+             gear-inertia=x0.89607465,gear-friction=x2.4515142,supply=11.266219V,\
+             current-offset=16.49322,current-gain=0.99254197,pot-offset=0.32611272,\
+             link-inertia=x2.7998147",
+        ),
+    ]
+}
+
 /// Three nominal grid cases of seed 1, small raw steps of a heavy link under a light load,
 /// that overshot by crossing the free play near the target before the profile kept the
 /// beams on one wall (docs/design.md §11, "Small raw steps"): #8 (11.1 %), #137 (14.4 %)

@@ -196,6 +196,12 @@ fn small_raw_steps_under_a_light_load_keep_the_beams_on_one_wall() {
     assert_settle_without_overshoot(&grid::small_raw_steps_under_a_light_load());
 }
 
+/// The three off-nominal grid cases of `grid::loaded_moves_on_a_warm_motor`.
+#[test]
+fn loaded_moves_on_a_warm_motor_scale_their_feed_forward() {
+    assert_settle_without_overshoot(&grid::loaded_moves_on_a_warm_motor());
+}
+
 /// A raw step of a link about twice as heavy as configured braked at the deceleration
 /// planned for the configured one and hit the braking wall of the free play. The profile
 /// now brakes for the drive its acceleration took (docs/design.md §11, "Braking for the

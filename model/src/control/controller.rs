@@ -7,6 +7,7 @@ use super::config::Config;
 use super::error::ControlError;
 use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Q16_ONE};
 use super::hunt::Hunt;
+use super::move_drive::MoveDrive;
 use super::move_duration;
 use super::schedule::{Schedule, TICKS_PER_S};
 use super::sine_feedforward::FeedForward;
@@ -151,6 +152,8 @@ pub struct Controller {
     torque_error_lp: i32,
     /// The side the output was clamped at the duty limit in the last tick (+1, −1, 0).
     limited: i8,
+    /// The running move's drive sums and its r̈ feed-forward scale.
+    move_drive: MoveDrive,
 }
 
 impl Controller {
@@ -188,6 +191,7 @@ impl Controller {
             theta_g_valid: false,
             w_bias: 0,
             rest_ticks: 0,
+            move_drive: MoveDrive::NEW,
         })
     }
 
@@ -232,6 +236,7 @@ impl Controller {
     /// [`ControlError::TrajectoryOutOfRange`]; the running trajectory is untouched.
     pub fn command(&mut self, cmd: Command) -> Result<(), ControlError> {
         let ff = FeedForward::for_command(&self.sched, &self.config, &cmd)?;
+        let from = self.traj.reference().position.to_bits();
         match cmd {
             // A raw step runs the near-time-optimal profile, planned with the load the
             // integrator holds now.
@@ -241,6 +246,11 @@ impl Controller {
             }
             _ => self.traj.command(self.planned(cmd))?,
         }
+        // A move counts its drive afresh (design §11, "Moves for the actuator they meet").
+        self.move_drive = match cmd {
+            Command::Move { target, .. } => MoveDrive::start(from, target.to_bits()),
+            _ => MoveDrive::NEW,
+        };
         self.ff = ff;
         self.commanded = true;
         Ok(())
@@ -276,6 +286,7 @@ impl Controller {
     pub fn jump(&mut self, target: Angle) -> Result<(), ControlError> {
         self.traj.command(Command::Step { target })?;
         self.ff = FeedForward::rigid(&self.sched);
+        self.move_drive = MoveDrive::NEW;
         self.commanded = true;
         Ok(())
     }
@@ -300,6 +311,7 @@ impl Controller {
         self.rest_ticks = 0;
         self.torque_error_lp = 0;
         self.limited = 0;
+        self.move_drive = MoveDrive::NEW;
     }
 
     /// One 1 kHz control step. Total: no panics, saturating arithmetic throughout.
@@ -452,11 +464,13 @@ impl Controller {
 
         // --- feed-forward: trajectory, then free play and compliance ---
         let u_vel = self.ff.vel.apply(r.velocity_q16);
-        let u_acc = self.ff.acc.apply(r.acceleration_q16);
+        // r̈ as the move's actuator needs it: scaled for the drive its acceleration took.
+        let accel = self.move_drive.apply(r.acceleration_q16);
+        let u_acc = self.ff.acc.apply(accel);
         let u_ff = u_vel.saturating_add(u_acc);
         let tau_ref = s
             .j_link
-            .apply(r.acceleration_q16)
+            .apply(accel)
             .saturating_add(s.torque_per_duty.apply(u_i));
         let side = s
             .fp_slope
@@ -634,8 +648,19 @@ impl Controller {
         // What this output spent on accelerating against what the rigid model asked: a
         // raw step brakes for the actuator it met (design §11, "Braking for the actuator
         // the step met").
-        self.traj
-            .drive(uc.saturating_sub(u_vel).saturating_sub(u_i), u_acc);
+        let drive = uc.saturating_sub(u_vel).saturating_sub(u_i);
+        self.traj.drive(drive, u_acc);
+        // The same for a loaded move, less the deflection's feed-forward: a heavier link or
+        // a warm motor scales the r̈ feed-forward of the rest of the move (design §11,
+        // "Moves for the actuator they meet"). A floating link's drive is the gear loop's,
+        // not the link's acceleration.
+        if !floating {
+            self.move_drive.take(
+                drive.saturating_sub(u_defl),
+                r.acceleration_q16,
+                self.ff.acc,
+            );
+        }
         let duty = sat_i32((i64::from(uc) + 0x8000) >> 16).clamp(-1000, 1000) as i16;
         self.hunt.update(stationary, duty);
         self.duty_prev = duty;

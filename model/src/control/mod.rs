@@ -11,6 +11,7 @@
 //!    pot's deflection-based estimate by inverse variance;
 //! 4. reference r, ṙ, r̈ from [`trajectory`] (a raw step along the near-time-optimal
 //!    profile of [`dash`]; a move no shorter than the limits allow, [`move_duration`]);
+//!    a move's r̈ feed-forward scaled for the actuator it meets ([`move_drive`]);
 //! 5. error e = r − θ_l, zero while r lies in the measured encoder count;
 //! 6. feed-forward of the rigid inverse model (the two-mass inverse for a sine,
 //!    [`sine_feedforward`]), plus the free-play and compliance
@@ -42,6 +43,7 @@ pub mod error;
 pub mod gain;
 pub mod hunt;
 pub mod impedance;
+pub mod move_drive;
 pub mod move_duration;
 pub mod schedule;
 pub mod sine;

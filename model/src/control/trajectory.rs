@@ -152,6 +152,24 @@ fn mul_q32_wide(a: i64, b: i64) -> i64 {
     }
 }
 
+/// [`mul_q32`] for `|a|` < 2⁶² and `t` < 2³² (τ in a move's Horner chains, whose
+/// coefficients [`bounded`] keeps small): no overflow is possible (|a_hi·t| < 2⁶², the low
+/// part < 2³²), so no check. The same result as [`mul_q32`], bit for bit.
+#[inline]
+fn mul_q32_bounded(a: i64, t: u32) -> i64 {
+    i64::from((a >> 32) as i32) * i64::from(t) + ((a as u32 as u64 * u64::from(t)) >> 32) as i64
+}
+
+/// Whether Σ|kᵢ| < 2⁶²: a Horner chain over these coefficients in τ ∈ [0, 1) then stays
+/// below 2⁶² at every step (each step's product is at most the running value, plus one
+/// for the rounding), so its products and sums need no saturation. A move whose
+/// coefficients do not pass asks for speeds of 2³⁰ rad/s and more: it is refused.
+fn bounded(k: &[i64]) -> bool {
+    k.iter()
+        .try_fold(0i64, |s, &x| s.checked_add(x.checked_abs()?))
+        .is_some_and(|s| s < 1 << 62)
+}
+
 fn fx(v: i64) -> I64F64 {
     I64F64::from_bits(i128::from(v) << 32)
 }
@@ -363,6 +381,9 @@ impl Trajectory {
                 )?;
             }
         }
+        if !(bounded(&cq) && bounded(&dv) && bounded(&da)) {
+            return Err(ov);
+        }
         // Velocity and acceleration must fit Q16 (below 30 000) over the whole move:
         // sampled at 65 points of τ (command time; the profiles are smooth quintics whose
         // peaks the samples miss by < 0.1 %, well inside the margin to 32 768).
@@ -422,16 +443,25 @@ impl Trajectory {
                 } else {
                     *tau = tau.saturating_add(*dtau);
                     let t = *tau;
-                    let horner = |k: &[i64]| {
-                        let mut acc = 0i64;
-                        for &ki in k.iter().rev() {
-                            acc = mul_q32(acc, t).saturating_add(ki);
-                        }
-                        acc
+                    let (pc, pv, pa) = if let Ok(t32) = u32::try_from(t) {
+                        // τ < 1 and the coefficients bounded at planning: plain arithmetic.
+                        let horner = |k: &[i64]| {
+                            k.iter()
+                                .rev()
+                                .fold(0i64, |acc, &ki| mul_q32_bounded(acc, t32) + ki)
+                        };
+                        (mul_q32_bounded(horner(c), t32), horner(dv), horner(da))
+                    } else {
+                        let horner = |k: &[i64]| {
+                            k.iter()
+                                .rev()
+                                .fold(0i64, |acc, &ki| mul_q32(acc, t).saturating_add(ki))
+                        };
+                        (mul_q32(horner(c), t), horner(dv), horner(da))
                     };
-                    self.pos = p0.saturating_add(mul_q32(horner(c), t));
-                    self.vel = q32_to_q16(horner(dv));
-                    self.acc = q32_to_q16(horner(da));
+                    self.pos = p0.saturating_add(pc);
+                    self.vel = q32_to_q16(pv);
+                    self.acc = q32_to_q16(pa);
                 }
             }
             Mode::Sine {
@@ -517,6 +547,41 @@ mod tests {
         for (a, b) in cases {
             assert_eq!(mul_q32(a, b), mul_q32_wide(a, b), "{a} × {b}");
         }
+    }
+
+    /// A Horner chain over coefficients that pass `bounded`, in τ < 1, is the same with
+    /// the unchecked product and plain adds as with the 128-bit product and saturating
+    /// adds, bit for bit; coefficients whose magnitudes sum to 2⁶² do not pass.
+    #[test]
+    fn bounded_horner_is_the_saturating_one() {
+        let mut x: u64 = 0x2545_F491_4F6C_DD1D;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        for _ in 0..100_000 {
+            let n = 4 + (next() % 2) as usize;
+            let k: Vec<i64> = (0..n)
+                .map(|_| (next() as i64) >> (4 + next() % 59)) // |k| < 2⁵⁹: Σ < 2⁶²
+                .collect();
+            assert!(bounded(&k), "{k:?}");
+            let t = next() & 0xFFFF_FFFF;
+            let wide = k
+                .iter()
+                .rev()
+                .fold(0i64, |a, &ki| mul_q32_wide(a, t as i64).saturating_add(ki));
+            let fast = k
+                .iter()
+                .rev()
+                .fold(0i64, |a, &ki| mul_q32_bounded(a, t as u32) + ki);
+            assert_eq!(fast, wide, "{k:?} at τ = {t}");
+        }
+        assert!(!bounded(&[1 << 61, 1 << 61]));
+        assert!(!bounded(&[(1 << 62) - 1, -1]));
+        assert!(!bounded(&[i64::MIN]));
+        assert!(bounded(&[(1 << 61) - 1, 1 << 61]));
     }
 
     #[test]
