@@ -479,13 +479,7 @@ mod tests {
             (0xFFFF_0000_0000_0000, 0x8000_0000_0000_FFFF),
             (0x8000_FFFF_FFFF_FFFF, 0xFFFF_FFFF_0000_0001),
         ];
-        let mut x: u64 = 0x2545_F491_4F6C_DD1D;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            x
-        };
+        let mut next = crate::test_rng::xorshift(0x2545_F491_4F6C_DD1D);
         for _ in 0..1_000_000 {
             let (a, d) = (next() | top, next() | top);
             cases.push((a, d));
@@ -554,13 +548,7 @@ mod tests {
 
     #[test]
     fn icbrt_is_the_reference_everywhere() {
-        let mut x: u64 = 0x853C_49E6_748F_EA9B;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            x
-        };
+        let mut next = crate::test_rng::xorshift(0x853C_49E6_748F_EA9B);
         for i in 0..300_000u32 {
             let n = (u128::from(next()) << 64 | u128::from(next())) >> (i % 128);
             for n in [n, n.saturating_add(1), n.saturating_sub(1)] {

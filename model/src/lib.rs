@@ -75,3 +75,5 @@ pub use units::{Angle, Force, Frequency, Inertia, Length, Ratio, Stiffness, Stre
 
 #[cfg(test)]
 mod sweep;
+#[cfg(test)]
+mod test_rng;

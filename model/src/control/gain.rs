@@ -128,6 +128,7 @@ impl Gain {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_rng::xorshift;
 
     #[test]
     fn gain_round_trip_and_apply() {
@@ -150,16 +151,6 @@ mod tests {
         assert_eq!(Gain::from_int(-2).unwrap().apply(i32::MAX), i32::MIN);
         let g = Gain::new(I64F64::from_num(0.001)).unwrap();
         assert!((g.apply_wide(1000 * Q16_ONE) - (1i64 << 32)).abs() <= 8);
-    }
-
-    /// A xorshift64 generator from `seed` (≠ 0): reproducible draws without a dependency.
-    fn xorshift(mut state: u64) -> impl FnMut() -> u64 {
-        move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        }
     }
 
     #[test]

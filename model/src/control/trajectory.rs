@@ -525,13 +525,8 @@ mod tests {
             1 << 31,
             -(1 << 31),
         ];
-        let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            x as i64
-        };
+        let mut draw = crate::test_rng::xorshift(0x9E37_79B9_7F4A_7C15);
+        let mut next = || draw() as i64;
         let mut cases = Vec::new();
         for &a in &edges {
             for &b in &edges {
@@ -554,13 +549,7 @@ mod tests {
     /// adds, bit for bit; coefficients whose magnitudes sum to 2⁶² do not pass.
     #[test]
     fn bounded_horner_is_the_saturating_one() {
-        let mut x: u64 = 0x2545_F491_4F6C_DD1D;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            x
-        };
+        let mut next = crate::test_rng::xorshift(0x2545_F491_4F6C_DD1D);
         for _ in 0..100_000 {
             let n = 4 + (next() % 2) as usize;
             let k: Vec<i64> = (0..n)
