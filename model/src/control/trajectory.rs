@@ -152,18 +152,19 @@ fn mul_q32_wide(a: i64, b: i64) -> i64 {
     }
 }
 
-/// [`mul_q32`] for `|a|` < 2⁶² and `t` < 2³² (τ in a move's Horner chains, whose
-/// coefficients [`bounded`] keeps small): no overflow is possible (|a_hi·t| < 2⁶², the low
-/// part < 2³²), so no check. The same result as [`mul_q32`], bit for bit.
+/// [`mul_q32`] for `t` < 2³² (τ in a move's Horner chains): a_hi·t lies in
+/// (−2⁶³, 2⁶³ − 2³²) and the low part in [0, 2³²), so their sum cannot overflow and needs
+/// no check. The same result as [`mul_q32`], bit for bit.
 #[inline]
 fn mul_q32_bounded(a: i64, t: u32) -> i64 {
     i64::from((a >> 32) as i32) * i64::from(t) + ((a as u32 as u64 * u64::from(t)) >> 32) as i64
 }
 
 /// Whether Σ|kᵢ| < 2⁶²: a Horner chain over these coefficients in τ ∈ [0, 1) then stays
-/// below 2⁶² at every step (each step's product is at most the running value, plus one
-/// for the rounding), so its products and sums need no saturation. A move whose
-/// coefficients do not pass asks for speeds of 2³⁰ rad/s and more: it is refused.
+/// within 2⁶² + 5 at every step (each step's product is at most the running value in
+/// magnitude, plus one for the rounding), so its adds need no saturation. A move whose
+/// coefficients do not pass asks for angles, speeds or accelerations of 2³⁰ and more (in
+/// rad, rad/s, rad/s²): it is refused.
 fn bounded(k: &[i64]) -> bool {
     k.iter()
         .try_fold(0i64, |s, &x| s.checked_add(x.checked_abs()?))
@@ -444,7 +445,8 @@ impl Trajectory {
                     *tau = tau.saturating_add(*dtau);
                     let t = *tau;
                     let (pc, pv, pa) = if let Ok(t32) = u32::try_from(t) {
-                        // τ < 1 and the coefficients bounded at planning: plain arithmetic.
+                        // τ < 1 and the coefficients bounded at planning (`bounded`):
+                        // plain adds.
                         let horner = |k: &[i64]| {
                             k.iter()
                                 .rev()
