@@ -695,9 +695,58 @@ pub struct FloatController {
     w_bias: f32,
     torque_error_lp: f32,
     limited: f32,
-    /// The running move's drive sums (`model::control::move_drive`): direction, Σ actual,
-    /// Σ model, and the r̈ feed-forward scale.
-    move_drive: (f32, f32, f32, f32),
+    /// The running move's drive sums and its r̈ feed-forward scale.
+    move_drive: FloatMoveDrive,
+}
+
+/// A move's drive sums and the r̈ feed-forward scale they give (`model::control::move_drive`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct FloatMoveDrive {
+    /// +1 or −1: the move's direction; 0 outside a move.
+    dir: f32,
+    /// Σ of the output's acceleration part and of the model's r̈ feed-forward, ‰·ticks.
+    actual: f32,
+    model: f32,
+    /// The feed-forward scale.
+    scale: f32,
+}
+
+impl FloatMoveDrive {
+    const NEW: Self = Self {
+        dir: 0.0,
+        actual: 0.0,
+        model: 0.0,
+        scale: 1.0,
+    };
+
+    fn start(from: f32, to: f32) -> Self {
+        let dir = if to > from {
+            1.0
+        } else if to < from {
+            -1.0
+        } else {
+            0.0
+        };
+        Self { dir, ..Self::NEW }
+    }
+
+    /// One tick of a loaded link's drive: the output's acceleration part and the model's
+    /// r̈ feed-forward, ‰.
+    fn take(&mut self, actual: f32, model: f32) {
+        if self.dir * model <= 0.0 || self.model >= move_drive::SUM_STOP as f32 {
+            return;
+        }
+        self.actual += self.dir * actual;
+        self.model += self.dir * model;
+        let margin = dash::DRIVE_MARGIN_PERCENT as f32 / 100.0;
+        if self.model >= move_drive::MIN_MODEL_DRIVE as f32 {
+            self.scale = if self.actual > margin * self.model {
+                (self.actual / (margin * self.model)).clamp(1.0, move_drive::MOVE_SCALE_MAX as f32)
+            } else {
+                1.0
+            };
+        }
+    }
 }
 
 impl FloatController {
@@ -731,7 +780,7 @@ impl FloatController {
             w_bias: 0.0,
             torque_error_lp: 0.0,
             limited: 0.0,
-            move_drive: (0.0, 0.0, 0.0, 1.0),
+            move_drive: FloatMoveDrive::NEW,
         }
     }
 
@@ -769,18 +818,8 @@ impl FloatController {
             _ => self.traj.command(cmd),
         }
         self.move_drive = match cmd {
-            Command::Move { target, .. } => {
-                let to = i32f32(target.to_bits());
-                let dir = if to > from {
-                    1.0
-                } else if to < from {
-                    -1.0
-                } else {
-                    0.0
-                };
-                (dir, 0.0, 0.0, 1.0)
-            }
-            _ => (0.0, 0.0, 0.0, 1.0),
+            Command::Move { target, .. } => FloatMoveDrive::start(from, i32f32(target.to_bits())),
+            _ => FloatMoveDrive::NEW,
         };
         self.commanded = true;
     }
@@ -805,7 +844,7 @@ impl FloatController {
         self.w_bias = 0.0;
         self.torque_error_lp = 0.0;
         self.limited = 0.0;
-        self.move_drive = (0.0, 0.0, 0.0, 1.0);
+        self.move_drive = FloatMoveDrive::NEW;
     }
 
     fn centred_counts(&self, raw: u16) -> i32 {
@@ -900,7 +939,7 @@ impl FloatController {
 
         // --- feed-forward ---
         let (u_vel, u_acc_model) = (self.ff_vel * r.velocity, self.ff_acc * r.acceleration);
-        let scale = self.move_drive.3;
+        let scale = self.move_drive.scale;
         let u_acc = scale * u_acc_model;
         let u_ff = u_vel + u_acc;
         let u_i = self.integ;
@@ -1015,24 +1054,9 @@ impl FloatController {
         }
 
         self.traj.drive(uc - u_vel - u_i, u_acc);
-        // A loaded move's drive against the model's: the r̈ feed-forward's scale
-        // (`model::control::move_drive`).
-        let (dir, actual, model, g) = self.move_drive;
-        if !floating && dir * u_acc_model > 0.0 && model < move_drive::SUM_STOP as f32 {
-            let (a, m) = (
-                actual + dir * (uc - u_vel - u_i - u_defl),
-                model + dir * u_acc_model,
-            );
-            let margin = dash::DRIVE_MARGIN_PERCENT as f32 / 100.0;
-            let max = move_drive::MOVE_SCALE_MAX as f32;
-            let g = if m < move_drive::MIN_MODEL_DRIVE as f32 {
-                g
-            } else if a > margin * m {
-                (a / (margin * m)).clamp(1.0, max)
-            } else {
-                1.0
-            };
-            self.move_drive = (dir, a, m, g);
+        // A loaded move's drive against the model's: the r̈ feed-forward's scale.
+        if !floating {
+            self.move_drive.take(uc - u_vel - u_i - u_defl, u_acc_model);
         }
         let duty = libm::floorf(uc + 0.5).clamp(-1000.0, 1000.0) as i16;
         self.hunt.update(stationary, duty);

@@ -55,12 +55,6 @@ pub struct MoveDrive {
     scale: i32,
 }
 
-impl Default for MoveDrive {
-    fn default() -> Self {
-        Self::NEW
-    }
-}
-
 impl MoveDrive {
     /// No move: the scale is 1 and nothing is counted.
     pub const NEW: Self = Self {
@@ -83,12 +77,6 @@ impl MoveDrive {
             },
             ..Self::NEW
         }
-    }
-
-    /// The feed-forward scale, Q16.
-    #[must_use]
-    pub const fn scale(&self) -> i32 {
-        self.scale
     }
 
     /// `x` (Q16) times the scale; `x` itself while the scale is 1.
@@ -162,7 +150,7 @@ mod tests {
     }
 
     fn scale(d: &MoveDrive) -> f64 {
-        f64::from(d.scale()) / 65536.0
+        f64::from(d.scale) / 65536.0
     }
 
     /// The scale is Σactual/(1.25·Σmodel) clamped to [1, 2] (computed here in f64 from the
@@ -219,7 +207,7 @@ mod tests {
         for _ in 0..1000 {
             d.take(3 * ONE, ONE, unit()); // accelerating: ×3 of the model
         }
-        assert_eq!(d.scale(), 2 * ONE, "capped at MOVE_SCALE_MAX");
+        assert_eq!(d.scale, 2 * ONE, "capped at MOVE_SCALE_MAX");
         let before = d;
         d.take(-100 * ONE, -ONE, unit()); // decelerating
         d.take(5 * ONE, 0, unit());
