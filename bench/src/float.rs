@@ -34,6 +34,7 @@
 
 use core::f32::consts::PI;
 
+use model::control::creep::{Creep, CREEP_SPEED};
 use model::control::hunt::Hunt;
 use model::control::schedule::{
     CONTACT_CURRENT_TOLERANCE, CONTACT_TORQUE_NM, COULOMB_RAMP_RAD_S,
@@ -685,6 +686,7 @@ pub struct FloatController {
     i_filtered: f32,
     integ: f32,
     hunt: Hunt,
+    creep: Creep,
     duty_prev: i16,
     defl_prev: f32,
     defl_valid: bool,
@@ -770,6 +772,7 @@ impl FloatController {
             i_filtered: 0.0,
             integ: 0.0,
             hunt: Hunt::NEW,
+            creep: Creep::NEW,
             duty_prev: 0,
             defl_prev: 0.0,
             defl_valid: false,
@@ -837,6 +840,7 @@ impl FloatController {
         self.i_filtered = 0.0;
         self.integ = 0.0;
         self.hunt = Hunt::NEW;
+        self.creep = Creep::NEW;
         self.duty_prev = 0;
         self.defl_valid = false;
         self.theta_g_valid = false;
@@ -925,16 +929,34 @@ impl FloatController {
         // Rest without load: the gear stays where it is.
         let stationary = r.velocity == 0.0 && r.acceleration == 0.0;
         let near = libm::fabsf(e_raw) <= s.rest_zone;
+        // Twice the zone after a creep push.
         let calm = libm::fabsf(self.integ) < s.rest_load
             && libm::fabsf(tau) < s.rest_torque
             && stationary
-            && near;
+            && (near || (self.creep.pushed() && libm::fabsf(e_raw) <= 2.0 * s.rest_zone));
         self.rest_ticks = if calm {
             self.rest_ticks.saturating_add(1)
         } else {
             0
         };
         let resting = self.rest_ticks >= 20;
+        // The creep at rest: the same rule, its push in f32.
+        let (creep_w, u_creep) = if stationary {
+            let beyond = libm::fabsf(e_raw) > 2.0 * HALF_COUNT;
+            let dir = self
+                .creep
+                .update(delta, resting, in_count, e_raw > 0.0, beyond);
+            if dir == 0 {
+                (0.0, 0.0)
+            } else {
+                let w = f32::from(dir) * i32f32(CREEP_SPEED.to_bits());
+                let f = s.coulomb + self.creep.boost_q16() as f32 / 65_536.0;
+                (w, self.ff_vel * w + f32::from(dir) * f)
+            }
+        } else {
+            self.creep = Creep::NEW;
+            (0.0, 0.0)
+        };
         self.w_ref += s.alpha * (r.velocity - self.w_ref);
 
         // --- feed-forward ---
@@ -989,7 +1011,13 @@ impl FloatController {
             e - s.inv_k * torque_error_hp
         };
         let u_p = if resting { 0.0 } else { s.kp * soft_p * e_p };
-        let u = u_ff + u_defl + u_coulomb + u_p + u_i + s.kd * soft_d * (self.w_ref - self.w_fb);
+        let u = u_ff
+            + u_creep
+            + u_defl
+            + u_coulomb
+            + u_p
+            + u_i
+            + s.kd * soft_d * (self.w_ref - self.w_fb);
 
         // --- limits ---
         let emf = s.duty_per_w * w_gear;
@@ -1035,7 +1063,7 @@ impl FloatController {
 
         // --- integrator ---
         let inc = if in_count || resting {
-            let slip = w_gear - r.velocity;
+            let slip = w_gear - r.velocity - creep_w;
             let band = s.w_deadband
                 + s.w_bias_per_amp * libm::fabsf(current)
                 + s.w_bias_per_duty * libm::fabsf(f32::from(applied));

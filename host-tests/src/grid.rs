@@ -218,6 +218,39 @@ pub fn loaded_moves_on_a_warm_motor() -> [Case; 3] {
     ]
 }
 
+/// Three nominal grid cases of seed 1 without load, run with 0.002 N·m of dry friction in
+/// the output bearing (`VSA_GRID_MAX_LOAD=0 VSA_GRID_PLANT=link-friction=0.002Nm`), whose
+/// link stopped where the free play left it, 2–4.4 counts off the target, before the creep
+/// at rest pushed it there (docs/design.md §11, "The creep at rest"): #49 (4.42 counts),
+/// #33 (2.05) and #154 (2.17), written out in full.
+#[must_use]
+pub fn unloaded_links_with_bearing_friction() -> [Case; 3] {
+    let friction = "link-friction=0.002Nm";
+    [
+        Case::written(
+            2094,
+            6.544_039_667_452_686e-4,
+            0.0,
+            Motion::Step(0.393_712_459_210_162_3),
+            friction,
+        ),
+        Case::written(
+            4537,
+            2.591_398_820_207_82e-3,
+            0.0,
+            Motion::Move(0.327_267_817_986_983_96, 227),
+            friction,
+        ),
+        Case::written(
+            7393,
+            1.066_047_294_340_717e-3,
+            0.0,
+            Motion::Step(-0.298_988_269_845_592_07),
+            friction,
+        ),
+    ]
+}
+
 /// Three nominal grid cases of seed 1, small raw steps of a heavy link under a light load,
 /// that overshot by crossing the free play near the target before the profile kept the
 /// beams on one wall (docs/design.md §11, "Small raw steps"): #8 (11.1 %), #137 (14.4 %)

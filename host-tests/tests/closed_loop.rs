@@ -202,6 +202,19 @@ fn loaded_moves_on_a_warm_motor_scale_their_feed_forward() {
     assert_settle_without_overshoot(&grid::loaded_moves_on_a_warm_motor());
 }
 
+/// An unloaded link with dry friction in its bearing stops wherever the free play left it
+/// and the rest hold keeps the gear still: 2–4.4 counts off the target. The creep pushes
+/// it there at a crawl and it rests within a count, the duty still (design §11, "The creep
+/// at rest"). The three nominal grid cases of `grid::unloaded_links_with_bearing_friction`.
+#[test]
+fn an_unloaded_link_with_bearing_friction_is_pushed_to_its_target() {
+    for case in grid::unloaded_links_with_bearing_friction() {
+        let m = sim::run(&case.scenario());
+        assert_rests(&case.to_string(), &m);
+        assert!(m.faults.is_empty(), "{case}: fault");
+    }
+}
+
 /// A raw step of a link about twice as heavy as configured braked at the deceleration
 /// planned for the configured one and hit the braking wall of the free play. The profile
 /// now brakes for the drive its acceleration took (docs/design.md §11, "Braking for the

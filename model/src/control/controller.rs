@@ -4,6 +4,7 @@
 use fixed::types::I32F32;
 
 use super::config::Config;
+use super::creep::Creep;
 use super::error::ControlError;
 use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Q16_ONE};
 use super::hunt::Hunt;
@@ -133,6 +134,8 @@ pub struct Controller {
     integ: i64,
     /// Hunting at rest (large duty reversals in quick succession).
     hunt: Hunt,
+    /// The creep at rest.
+    creep: Creep,
     duty_prev: i16,
     /// Deflection feed-forward of the previous tick, rad Q16, and whether it is valid.
     defl_prev: i32,
@@ -181,6 +184,7 @@ impl Controller {
             i_filtered: 0,
             integ: 0,
             hunt: Hunt::NEW,
+            creep: Creep::NEW,
             duty_prev: 0,
             defl_prev: 0,
             torque_error_lp: 0,
@@ -304,6 +308,7 @@ impl Controller {
         self.i_filtered = 0;
         self.integ = 0;
         self.hunt = Hunt::NEW;
+        self.creep = Creep::NEW;
         self.duty_prev = 0;
         self.defl_valid = false;
         self.theta_g_valid = false;
@@ -433,11 +438,14 @@ impl Controller {
         // one only takes energy out of it at each contact. A load that turns up makes the
         // gear creep, the hold integrates it and the integrator leaves the band.
         let stationary = r.velocity_q16 == 0 && r.acceleration_q16 == 0;
-        let near = q32_to_q16(e_q32).saturating_abs() <= s.rest_zone_q16;
+        let e_abs = q32_to_q16(e_q32).saturating_abs();
+        let near = e_abs <= s.rest_zone_q16;
+        // After a creep push (below) the zone is twice as wide: a link without friction
+        // leaves the push at its speed and drifts between the still gear's walls.
         let calm = load_abs < s.rest_load_q16
             && tau.saturating_abs() < s.rest_torque_q16
             && stationary
-            && near;
+            && (near || (self.creep.pushed() && e_abs <= 2 * s.rest_zone_q16));
         // The conditions must hold for `REST_TICKS` in a row: a loaded link passes through
         // them for a few ticks at the end of a raw step (the integrator unwinds).
         self.rest_ticks = if calm {
@@ -446,6 +454,23 @@ impl Controller {
             0
         };
         let resting = self.rest_ticks >= REST_TICKS;
+        // The creep: a still link more than a count off, pushed there at a crawl by a
+        // gear reference of ±`CREEP_SPEED`, its velocity feed-forward and the configured
+        // Coulomb friction plus a drive that grows while the link does not move
+        // (design §11, "The creep at rest").
+        let (creep_w, u_creep) = if stationary {
+            self.creep.step(
+                delta,
+                resting,
+                in_count,
+                e_q32,
+                self.ff.vel,
+                s.coulomb_duty_q16,
+            )
+        } else {
+            self.creep = Creep::NEW;
+            (0, 0)
+        };
         // The position loop acts on the gear: where the gear should be (the reference plus
         // the deflection the coupling needs) minus the gear estimate. The link enters it
         // below ω_o only, so the link's rattle in the free play does not drive the motor.
@@ -526,6 +551,7 @@ impl Controller {
             .saturating_add(s.torque_lp_beta.apply(torque_error_hp));
         // --- PID (derivative on the filtered link velocity) ---
         let u = u_ff
+            .saturating_add(u_creep)
             .saturating_add(u_defl)
             .saturating_add(u_coulomb)
             .saturating_add(if resting {
@@ -618,7 +644,9 @@ impl Controller {
         // a hold that chased the bias of a warm motor, or of a sagging supply, under load
         // hunted (design §11, "The actuator is not the model").
         let inc = if in_count || resting {
-            let slip = w_gear.saturating_sub(r.velocity_q16);
+            let slip = w_gear
+                .saturating_sub(r.velocity_q16)
+                .saturating_sub(creep_w);
             // Only for a stationary reference: a moving one asks the gear for ṙ plus the
             // deflection's rate (−ṙ at a sine's coupling resonance), and the slip
             // integrated whenever the link crossed the reference's count kicked the hold

@@ -38,6 +38,7 @@
 
 pub mod config;
 pub mod controller;
+pub mod creep;
 pub mod dash;
 pub mod error;
 pub mod gain;

@@ -9,7 +9,7 @@ use fixed::types::{I32F32, I64F64};
 use super::config::{Config, Limits, PidGains};
 use super::dash::{self, DashGains};
 use super::error::ControlError;
-use super::gain::{Gain, Q16_ONE};
+use super::gain::{sat_i32, Gain, Q16_ONE};
 use super::move_duration;
 use super::validate::validate;
 use super::wide::{add, div, mul, sub, to_gain, to_q16, to_q32, wide};
@@ -173,6 +173,9 @@ pub struct Schedule {
     /// The duty of the gear's Coulomb friction τ_c, (1000/V_s)·(R/k_t)·τ_c (at most the
     /// duty limit), per rad/s of the gear velocity reference up to the ramp, ‰·s/rad Q16.
     pub(crate) coulomb_per_w_q16: i32,
+    /// The configured Coulomb friction's whole duty, ‰ Q16 (`coulomb_per_w_q16` at
+    /// `COULOMB_RAMP_RAD_S`).
+    pub(crate) coulomb_duty_q16: i32,
     /// The hysteresis coefficient c (§2.1), per rad, Q16: half the band of deflections
     /// that carry one torque τ is c·(τ/k)².
     pub(crate) hyst_c_q16: i32,
@@ -413,6 +416,8 @@ impl Schedule {
             duty_per_volt,
         )?
         .min(I64F64::from_num(lim.max_duty));
+        let coulomb_ramp_q16 = to_q16(wide(COULOMB_RAMP_RAD_S))?;
+        let coulomb_per_w_q16 = to_q16(div(coulomb_duty, wide(COULOMB_RAMP_RAD_S))?)?;
         let dash = DashGains {
             accel_per_duty: to_gain(div(wide(dash::CURRENT_FRACTION), ff_acc)?)?,
             top_per_duty: to_gain(div(wide(dash::VOLTAGE_FRACTION), ff_vel)?)?,
@@ -496,8 +501,12 @@ impl Schedule {
             ff_defl: to_gain(mul(mul(duty_per_volt, ke)?, ticks_per_s)?)?,
             j_link: to_gain(p.j_link)?,
             inv_k: to_gain(div(I64F64::ONE, k)?)?,
-            coulomb_ramp_q16: to_q16(wide(COULOMB_RAMP_RAD_S))?,
-            coulomb_per_w_q16: to_q16(div(coulomb_duty, wide(COULOMB_RAMP_RAD_S))?)?,
+            coulomb_ramp_q16,
+            coulomb_per_w_q16,
+            // The ramp's end as the per-tick feed-forward computes it (bit for bit).
+            coulomb_duty_q16: sat_i32(
+                (i64::from(coulomb_ramp_q16) * i64::from(coulomb_per_w_q16)) >> 16,
+            ),
             hyst_c_q16: to_q16(
                 setting
                     .hysteresis_coefficient()

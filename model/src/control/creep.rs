@@ -1,0 +1,235 @@
+//! The creep at rest: a link that came to rest more than a count off its target, with no
+//! load to press it against a wall of the free play, is pushed there by the gear at a
+//! crawl (docs/design.md §11, "The creep at rest"). The rest hold keeps the gear still
+//! wherever the link stopped in the free play; with dry friction in the output bearing
+//! that is anywhere within ±φ_b of the target. The f32 port uses the same rule.
+//!
+//! Whether the link has stopped is read from the link encoder alone: no count change for
+//! `CREEP_STILL_TICKS` and for `CREEP_STILL_INTERVALS` times the interval between its
+//! last two changes. A link that slows to a stop (friction) passes; one that drifts at a
+//! constant speed through the free play (no friction) does not, until it is slower than a
+//! count in `CREEP_STILL_TICKS`.
+
+use fixed::types::I32F32;
+
+use super::gain::Gain;
+use crate::sensors::ENCODER_HALF_COUNT_Q32;
+
+/// Gear speed of the push, rad/s: 2 % of a count per tick. A link without friction leaves
+/// the push at this speed, about a count in 75 ms; measured on the grid (seed 1, the 65
+/// nominal runs without load, 0.002 N·m of bearing friction) 0.02 and 0.04 ended within a
+/// count alike (62 and 61), and 0.04 swung the duty more at rest off-nominal.
+pub const CREEP_SPEED: I32F32 = I32F32::lit("0.02");
+/// Ticks without a count change before a push may start (64 ms).
+pub const CREEP_STILL_TICKS: u16 = 64;
+/// … and at least this many times the interval between the last two count changes.
+pub const CREEP_STILL_INTERVALS: u16 = 4;
+/// Growth of the push's extra drive while the link does not move, ‰ Q16 per tick
+/// (1000/2¹⁶ ‰, about 15 ‰ per second): the gear's and the bearing's friction are not
+/// known, so the drive rises until the link moves.
+pub const CREEP_BOOST_PER_TICK_Q16: i32 = 1000;
+/// Ceiling of that extra drive, ‰: with it the push stays below the rest's 20 ‰ duty span
+/// on the off-nominal grids (12 ‰ gave 9 more runs above it over six seeds).
+pub const CREEP_BOOST_MAX_PERMILLE: i32 = 8;
+
+/// `CREEP_SPEED` in rad/s Q16.
+pub(crate) const CREEP_SPEED_Q16: i32 = (CREEP_SPEED.to_bits() >> 16) as i32;
+/// A count crossed within this many ticks while pushing: the link moves at twice the
+/// push's speed or faster (thrown, not pushed), and the push stops.
+const KICK_TICKS: u16 = (2 * ENCODER_HALF_COUNT_Q32 / (2 * CREEP_SPEED.to_bits() / 1000)) as u16;
+
+const _: () = assert!(KICK_TICKS == 38);
+
+/// The creep's state: the link's stillness and the push.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Creep {
+    /// Ticks since the link's count last changed (saturating).
+    still: u16,
+    /// Ticks between its last two changes (saturating).
+    interval: u16,
+    /// Direction of the push, ±1, or 0 for none.
+    dir: i8,
+    /// Extra drive of the push, ‰ Q16, 0…`CREEP_BOOST_MAX_PERMILLE`.
+    boost_q16: i32,
+    /// A push happened since the reference last moved.
+    pushed: bool,
+}
+
+impl Creep {
+    /// No push, the link taken to have just moved.
+    pub const NEW: Creep = Creep {
+        still: 0,
+        interval: 0,
+        dir: 0,
+        boost_q16: 0,
+        pushed: false,
+    };
+
+    /// Whether a push happened since the reference last moved: the link may then have
+    /// left it at the push's speed, and the rest hold's zone is twice as wide, so that the
+    /// loop does not throw a link that drifts between the still gear's walls.
+    #[must_use]
+    pub const fn pushed(&self) -> bool {
+        self.pushed
+    }
+
+    /// The extra drive of the push, ‰ Q16 (0 without a push).
+    #[must_use]
+    pub const fn boost_q16(&self) -> i32 {
+        self.boost_q16
+    }
+
+    /// One tick of a stationary reference, as [`Creep::update`], with the push's gear
+    /// velocity reference (rad/s Q16, for the gear hold) and duty (‰ Q16): the velocity
+    /// feed-forward `ff_vel` of ±`CREEP_SPEED` plus the configured Coulomb friction's duty
+    /// (‰ Q16) and the extra drive. Out of line: on the move's ticks, the control step's
+    /// most expensive, it costs a branch.
+    #[inline(never)]
+    pub fn step(
+        &mut self,
+        delta: i32,
+        resting: bool,
+        in_count: bool,
+        e_q32: i64,
+        ff_vel: Gain,
+        coulomb_duty_q16: i32,
+    ) -> (i32, i32) {
+        let positive = e_q32 > 0;
+        let beyond = e_q32.saturating_abs() > 2 * ENCODER_HALF_COUNT_Q32;
+        let dir = self.update(delta, resting, in_count, positive, beyond);
+        if dir == 0 {
+            return (0, 0);
+        }
+        let w = CREEP_SPEED_Q16 * i32::from(dir);
+        let f = coulomb_duty_q16 + self.boost_q16;
+        (
+            w,
+            ff_vel.apply(w).saturating_add(if dir > 0 { f } else { -f }),
+        )
+    }
+
+    /// One tick of a stationary reference (a moving one resets the state to
+    /// [`Creep::NEW`]): the link encoder's count change, whether the rest hold holds,
+    /// whether the link is in the reference's count, and of the error r − θ_l to the
+    /// count's centre whether it is positive and more than a count. Returns the push's
+    /// direction (±1, 0 for none): towards the target from more than a count off, until
+    /// the link is in the target's count, moves away from it, or is thrown.
+    pub fn update(
+        &mut self,
+        delta: i32,
+        resting: bool,
+        in_count: bool,
+        positive: bool,
+        beyond: bool,
+    ) -> i8 {
+        if delta == 0 {
+            self.still = self.still.saturating_add(1);
+        } else {
+            self.interval = self.still.saturating_add(1);
+            self.still = 0;
+        }
+        self.pushed |= self.dir != 0;
+        if !resting || in_count {
+            self.dir = 0;
+        } else if self.dir == 0 {
+            let quiet = CREEP_STILL_TICKS.max(self.interval.saturating_mul(CREEP_STILL_INTERVALS));
+            if self.still >= quiet && beyond {
+                self.dir = if positive { 1 } else { -1 };
+            }
+        } else if (delta != 0 && self.interval <= KICK_TICKS) || positive != (self.dir > 0) {
+            self.dir = 0;
+        }
+        if self.dir == 0 {
+            self.boost_q16 = 0;
+        } else if delta == 0 {
+            self.boost_q16 =
+                (self.boost_q16 + CREEP_BOOST_PER_TICK_Q16).min(CREEP_BOOST_MAX_PERMILLE << 16);
+        }
+        self.dir
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const COUNT: i64 = 2 * ENCODER_HALF_COUNT_Q32;
+
+    /// `update` with the error r − θ_l, rad Q32.
+    fn tick(c: &mut Creep, delta: i32, resting: bool, in_count: bool, e: i64) -> i8 {
+        c.update(delta, resting, in_count, e > 0, e.abs() > COUNT)
+    }
+
+    /// `n` resting ticks without a count change at error `e`; the last direction.
+    fn quiet(c: &mut Creep, n: usize, e: i64) -> i8 {
+        (0..n).fold(0, |_, _| tick(c, 0, true, false, e))
+    }
+
+    #[test]
+    fn a_still_link_more_than_a_count_off_is_pushed_towards_the_target() {
+        let mut c = Creep::NEW;
+        // 63 quiet ticks: not yet; the 64th starts the push.
+        assert_eq!(quiet(&mut c, 63, 3 * COUNT), 0);
+        assert_eq!(tick(&mut c, 0, true, false, 3 * COUNT), 1);
+        assert!(!c.pushed());
+        // The drive grows while the link does not move, up to its ceiling.
+        assert_eq!(c.boost_q16(), CREEP_BOOST_PER_TICK_Q16);
+        quiet(&mut c, 1000, 3 * COUNT);
+        assert_eq!(c.boost_q16(), CREEP_BOOST_MAX_PERMILLE << 16);
+        assert!(c.pushed());
+        // Pushed: the link moves a count after a long quiet and the push goes on, with
+        // the drive it has; a count in one tick more is a thrown link, and it stops.
+        assert_eq!(tick(&mut c, 1, true, false, 2 * COUNT), 1);
+        assert_eq!(c.boost_q16(), CREEP_BOOST_MAX_PERMILLE << 16);
+        assert_eq!(tick(&mut c, 1, true, false, 2 * COUNT), 0, "thrown");
+        assert_eq!(c.boost_q16(), 0);
+        // The other way round for a negative error; in the count it stops.
+        let mut c = Creep::NEW;
+        assert_eq!(quiet(&mut c, 64, -2 * COUNT), -1);
+        assert_eq!(tick(&mut c, 1, true, true, 0), 0);
+        assert!(c.pushed());
+    }
+
+    #[test]
+    fn no_push_within_a_count_or_without_the_rest_hold() {
+        let mut c = Creep::NEW;
+        assert_eq!(
+            quiet(&mut c, 500, COUNT),
+            0,
+            "one count off: within the limit"
+        );
+        let mut c = Creep::NEW;
+        for _ in 0..500 {
+            assert_eq!(tick(&mut c, 0, false, false, 3 * COUNT), 0, "no rest hold");
+        }
+        // Out of the rest hold the push stops, and the zone stays widened.
+        let mut c = Creep::NEW;
+        quiet(&mut c, 70, 3 * COUNT);
+        assert_eq!(tick(&mut c, 0, false, false, 3 * COUNT), 0);
+        assert!(c.pushed());
+    }
+
+    #[test]
+    fn a_drifting_link_is_not_taken_for_a_still_one() {
+        let mut c = Creep::NEW;
+        // A count every 30 ticks: the quiet time needed is max(64, 4·30) = 120 ticks.
+        for _ in 0..10 {
+            quiet(&mut c, 29, 3 * COUNT);
+            assert_eq!(tick(&mut c, 1, true, false, 3 * COUNT), 0);
+        }
+        assert_eq!(quiet(&mut c, 119, 3 * COUNT), 0);
+        assert_eq!(
+            tick(&mut c, 0, true, false, 3 * COUNT),
+            1,
+            "120 quiet ticks"
+        );
+    }
+
+    #[test]
+    fn the_kick_threshold_is_a_count_at_twice_the_push_speed() {
+        // Independent: 2π/4096 rad over 2·0.02 rad/s, in 1 ms ticks.
+        let ticks = (2.0 * core::f64::consts::PI / 4096.0) / (2.0 * 0.02) * 1000.0;
+        assert_eq!(f64::from(KICK_TICKS), ticks.floor());
+        assert_eq!(CREEP_SPEED_Q16, (0.02f64 * 65536.0) as i32);
+    }
+}
