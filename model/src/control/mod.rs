@@ -23,7 +23,8 @@
 //!    While the link floats in the free play (little load held), P and I act on the gear's
 //!    error against a gear-angle estimate (the observer integrated, pulled towards the
 //!    link below ω_c/3), so that the link's rattle in the gap does not drive the motor,
-//!    and near the target or in motion the loop runs at ω_c/2;
+//!    and near the target or in motion the loop runs at ω_c/2; at rest without load a
+//!    still link more than a count off the target is pushed there at a crawl ([`creep`]);
 //! 8. braking governor for stationary references (ω_g² > 2·a_b·|e|);
 //! 9. clamps: current window about the back-EMF, beam-derived torque limit, duty limit,
 //!    with anti-windup.
