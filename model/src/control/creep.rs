@@ -15,10 +15,9 @@ use fixed::types::I32F32;
 use super::gain::Gain;
 use crate::sensors::ENCODER_HALF_COUNT_Q32;
 
-/// Gear speed of the push, rad/s: 2 % of a count per tick. A link without friction leaves
-/// the push at this speed, about a count in 75 ms; measured on the grid (seed 1, the 65
-/// nominal runs without load, 0.002 N·m of bearing friction) 0.02 and 0.04 ended within a
-/// count alike (62 and 61), and 0.04 swung the duty more at rest off-nominal.
+/// Gear speed of the push, rad/s: an encoder count in 77 ms. A link without friction
+/// leaves the push at this speed; 0.04 brought as many links with bearing friction within
+/// a count but swung the duty more at rest (docs/design.md §11, "The creep at rest").
 pub const CREEP_SPEED: I32F32 = I32F32::lit("0.02");
 /// Ticks without a count change before a push may start (64 ms).
 pub const CREEP_STILL_TICKS: u16 = 64;
@@ -28,8 +27,9 @@ pub const CREEP_STILL_INTERVALS: u16 = 4;
 /// (1000/2¹⁶ ‰, about 15 ‰ per second): the gear's and the bearing's friction are not
 /// known, so the drive rises until the link moves.
 pub const CREEP_BOOST_PER_TICK_Q16: i32 = 1000;
-/// Ceiling of that extra drive, ‰: with it the push stays below the rest's 20 ‰ duty span
-/// on the off-nominal grids (12 ‰ gave 9 more runs above it over six seeds).
+/// Ceiling of that extra drive, ‰: the push stays below the rest's 20 ‰ duty span on the
+/// off-nominal grids (with 12 ‰, 64 of their runs over six seeds were above it, against
+/// 54).
 pub const CREEP_BOOST_MAX_PERMILLE: i32 = 8;
 
 /// `CREEP_SPEED` in rad/s Q16.
