@@ -167,20 +167,26 @@ fn assert_within_the_beams(cases: &[grid::Case]) {
 /// The two off-nominal grid cases of `grid::hunting_at_rest`.
 #[test]
 fn a_loop_that_hunts_at_rest_softens_and_the_link_settles() {
-    for case in grid::hunting_at_rest() {
-        let m = sim::run(&case.scenario());
-        assert_rests(&case.to_string(), &m);
-        assert!(m.faults.is_empty(), "{case}: fault");
-    }
+    assert_rest_without_fault(&grid::hunting_at_rest());
 }
 
-/// Each case ends at rest (`assert_rests`), within 5 % of overshoot and with no fault.
+/// Each case ends at rest (`assert_rests`) with no fault; its metrics are returned.
+fn assert_rest_without_fault(cases: &[grid::Case]) -> Vec<Metrics> {
+    cases
+        .iter()
+        .map(|case| {
+            let m = sim::run(&case.scenario());
+            assert_rests(&case.to_string(), &m);
+            assert!(m.faults.is_empty(), "{case}: fault");
+            m
+        })
+        .collect()
+}
+
+/// Each case ends at rest, within 5 % of overshoot and with no fault.
 fn assert_settle_without_overshoot(cases: &[grid::Case]) {
-    for case in cases {
-        let m = sim::run(&case.scenario());
-        assert_rests(&case.to_string(), &m);
+    for (case, m) in cases.iter().zip(assert_rest_without_fault(cases)) {
         assert!(m.overshoot_pct <= 5.0, "{case}: overshoot");
-        assert!(m.faults.is_empty(), "{case}: fault");
     }
 }
 
@@ -208,11 +214,7 @@ fn loaded_moves_on_a_warm_motor_scale_their_feed_forward() {
 /// at rest"). The three nominal grid cases of `grid::unloaded_links_with_bearing_friction`.
 #[test]
 fn an_unloaded_link_with_bearing_friction_is_pushed_to_its_target() {
-    for case in grid::unloaded_links_with_bearing_friction() {
-        let m = sim::run(&case.scenario());
-        assert_rests(&case.to_string(), &m);
-        assert!(m.faults.is_empty(), "{case}: fault");
-    }
+    assert_rest_without_fault(&grid::unloaded_links_with_bearing_friction());
 }
 
 /// A raw step of a link about twice as heavy as configured braked at the deceleration
