@@ -7,8 +7,8 @@
 //! Whether the link has stopped is read from the link encoder alone: no count change for
 //! `CREEP_STILL_TICKS` and for `CREEP_STILL_INTERVALS` times the interval between its
 //! last two changes. A link that slows to a stop (friction) passes; one that drifts at a
-//! constant speed through the free play (no friction) does not, until it is slower than a
-//! count in `CREEP_STILL_TICKS`.
+//! constant speed through the free play (no friction) does not, unless a bounce off the
+//! still gear has just changed its pace.
 
 use fixed::types::I32F32;
 
