@@ -928,12 +928,13 @@ impl FloatController {
         let e_g = r.position + self.defl_prev - self.theta_g;
         // Rest without load: the gear stays where it is.
         let stationary = r.velocity == 0.0 && r.acceleration == 0.0;
-        let near = libm::fabsf(e_raw) <= s.rest_zone;
+        let e_abs = libm::fabsf(e_raw);
+        let near = e_abs <= s.rest_zone;
         // Twice the zone after a creep push.
         let calm = libm::fabsf(self.integ) < s.rest_load
             && libm::fabsf(tau) < s.rest_torque
             && stationary
-            && (near || (self.creep.pushed() && libm::fabsf(e_raw) <= 2.0 * s.rest_zone));
+            && (near || (self.creep.pushed() && e_abs <= 2.0 * s.rest_zone));
         self.rest_ticks = if calm {
             self.rest_ticks.saturating_add(1)
         } else {
@@ -942,7 +943,7 @@ impl FloatController {
         let resting = self.rest_ticks >= 20;
         // The creep at rest: the same rule, its push in f32.
         let (creep_w, u_creep) = if stationary {
-            let beyond = libm::fabsf(e_raw) > 2.0 * HALF_COUNT;
+            let beyond = e_abs > 2.0 * HALF_COUNT;
             let dir = self
                 .creep
                 .update(delta, resting, in_count, e_raw > 0.0, beyond);
