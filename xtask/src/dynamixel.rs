@@ -4,7 +4,8 @@
 //! broadcast torque enable, one SYNC_WRITE and the present positions within the
 //! controller's tolerance, the present load's direction under the load, the angle-limit,
 //! range and checksum error bits, back-to-back READs) and Protocol 2.0 (the X-series
-//! table, broadcast ping, SYNC WRITE, SYNC READ, the error numbers).
+//! table, broadcast ping, SYNC WRITE, SYNC READ, the error numbers). The boards log to
+//! `target/dxl-log-BOARD.idN.log`; a failed check prints each one's first lines after boot.
 //!
 //! The SDK comes from PyPI into the virtual environment `target/venv` (made with
 //! `python3 -m venv`; when the `venv` module is missing and we are root with apt-get,
@@ -144,18 +145,20 @@ fn start_bus(vsa: &Path, board: Board, elf: &Path, link: &Path, args: &[&str]) -
     Ok(bus)
 }
 
-/// Prints what a check printed, prefixed with the board; the number of `ok` lines.
-fn relay(board: Board, out: &std::process::Output) -> usize {
-    let mut passed = 0;
+/// Prints what a check printed, prefixed with the board; the number of `ok` and `note`
+/// lines.
+fn relay(board: Board, out: &std::process::Output) -> (usize, usize) {
+    let (mut passed, mut notes) = (0, 0);
     for line in String::from_utf8_lossy(&out.stdout).lines() {
         println!("[{} dynamixel] {line}", board.feature());
         passed += usize::from(line.starts_with("ok "));
+        notes += usize::from(line.starts_with("note "));
     }
     let err = String::from_utf8_lossy(&out.stderr);
     if !err.trim().is_empty() {
         eprintln!("{err}");
     }
-    passed
+    (passed, notes)
 }
 
 /// Runs the checks on `board` with the firmware `elf` (the three-board bus, then the bus
@@ -173,13 +176,22 @@ pub fn run(board: Board, elf: &Path) -> Result<String> {
 /// The three boards under load with `sdk_check.py`.
 fn three_boards(python: &Path, vsa: &Path, board: Board, elf: &Path) -> Result<String> {
     let link = target_dir().join(format!("dxl-bus-{}", board.feature()));
+    let log = target_dir().join(format!("dxl-log-{}", board.feature()));
     let load = format!("{}Nm", f64::from(LOAD_MNM) / 1000.0);
+    let log_arg = log.to_string_lossy();
     let bus = start_bus(
         vsa,
         board,
         elf,
         &link,
-        &["--qemu-load", &load, "--ids", "1,2,3"],
+        &[
+            "--qemu-load",
+            &load,
+            "--ids",
+            "1,2,3",
+            "--qemu-log",
+            &log_arg,
+        ],
     )?;
 
     let latency = std::env::var("DXL_LATENCY_MS").unwrap_or_else(|_| "2500".into());
@@ -198,15 +210,52 @@ fn three_boards(python: &Path, vsa: &Path, board: Board, elf: &Path) -> Result<S
         .context("running sdk_check.py")?;
     let secs = started.elapsed().as_secs_f64();
     drop(bus);
-    let passed = relay(board, &out);
-    ensure!(
-        out.status.success(),
-        "dynamixel-sdk checks failed on {}",
-        board.feature()
-    );
+    let (passed, notes) = relay(board, &out);
+    if !out.status.success() {
+        board_logs(board, elf, &log);
+        bail!("dynamixel-sdk checks failed on {}", board.feature());
+    }
+    let notes = match notes {
+        0 => String::new(),
+        n => format!(" ({n} notes above)"),
+    };
     Ok(format!(
-        "{passed} dynamixel-sdk checks passed in {secs:.0} s"
+        "{passed} dynamixel-sdk checks passed in {secs:.0} s{notes}"
     ))
+}
+
+/// After a failed check: what each board logged beyond its boot (faults, warnings, stored
+/// settings), decoded, to tell a board that faulted or stopped from a lost packet.
+fn board_logs(board: Board, elf: &Path, log: &Path) {
+    let format = match crate::defmt_log::LogFormat::from_elf(elf) {
+        Ok(f) => f,
+        Err(e) => {
+            eprintln!("xtask: the boards' logs cannot be decoded: {e:#}");
+            return;
+        }
+    };
+    for id in 1..=3 {
+        let path = log.with_extension(format!("id{id}.log"));
+        let Ok(bytes) = std::fs::read(&path) else {
+            eprintln!("xtask: no log at {}", path.display());
+            continue;
+        };
+        let mut decoder = format.decoder();
+        let lines = decoder.feed(&bytes);
+        // Boot lines are stamped 0 µs; the first lines after them say what happened.
+        let after_boot: Vec<&String> = lines
+            .iter()
+            .filter(|l| !l.trim_start().starts_with("0.000"))
+            .collect();
+        println!(
+            "[{} dynamixel] board {id}'s log: {} lines after boot, the first 20:",
+            board.feature(),
+            after_boot.len()
+        );
+        for line in after_boot.iter().take(20) {
+            println!("[{} dynamixel]   {line}", board.feature());
+        }
+    }
 }
 
 /// One board with a flash file, power-cycled three times (`sdk_persist.py`'s steps, with
@@ -232,7 +281,7 @@ fn power_cycles(python: &Path, vsa: &Path, board: Board, elf: &Path) -> Result<S
             .args(["--latency-ms", &latency, "--baud", &SDK_BAUD.to_string()])
             .output()
             .context("running sdk_persist.py")?;
-        *passed += relay(board, &out);
+        *passed += relay(board, &out).0;
         ensure!(
             out.status.success(),
             "sdk_persist.py {name} failed on {}",
