@@ -17,7 +17,8 @@ follows it and not LATENCY_TIMER: about 0.8 s at 1 Mbd, 4.4 s at 9 600 Bd).
 
 Protocol 1.0 (AX-12A), then a switch to 2.0 by a broadcast write of Protocol Type, the
 2.0 checks (X-series table, GroupSyncRead), a switch back and the Lock check (the store
-and the power cycle: sdk_persist.py). The expected
+and the power cycle: sdk_persist.py). Every packet without a status is confirmed on each
+device (see confirm_broadcast); a device that lost one is written to again with a note. The expected
 values are the ROBOTIS e-Manual's (AX-12A and XL430-W250 pages), written here by hand, not
 read from the Rust tables. Prints one line per check and exits 1 if any failed.
 """
@@ -107,6 +108,41 @@ def switch_protocol(port, old, new, writes, rounds=3):
           f"({len(missed)} of them answering in {old})")
 
 
+def confirm_broadcast(port, ph, what, address, size, want):
+    """After a packet without status (a broadcast WRITE, a SYNC WRITE): reads `address`
+    of every device until it shows `want[id]` (at most 2 s each: every board hears the
+    packet through its own emulated USART). Returns the seconds each took and the IDs
+    that never showed it.
+
+    As in `switch_protocol`: one device may have lost the packet, and is then written to
+    addressed (the status confirms it), with a note; two or more are returned as missed."""
+    read = {1: ph.read1ByteTxRx, 2: ph.read2ByteTxRx, 4: ph.read4ByteTxRx}[size]
+    write = {1: ph.write1ByteTxRx, 2: ph.write2ByteTxRx, 4: ph.write4ByteTxRx}[size]
+    waits, missed = {}, []
+    for i in IDS:
+        (value, res), waits[i] = settled(lambda: read(port, i, address)[:2],
+                                         lambda r: r == (want[i], COMM_SUCCESS))
+        if (value, res) != (want[i], COMM_SUCCESS):
+            missed.append(i)
+    if len(missed) == 1:
+        i = missed[0]
+        res, err = write(port, i, address, want[i])
+        print(f"note id {i} missed the {ph.getProtocolVersion()} {what}: written again addressed "
+              f"to it (result {res}, error {err})", flush=True)
+        if read(port, i, address)[:2] == (want[i], COMM_SUCCESS):
+            missed = []
+    return waits, missed
+
+
+def return_delay(port, ph, address, value):
+    """Return Delay Time `value` on every device by a broadcast write, confirmed."""
+    ph.write1ByteTxOnly(port, BROADCAST, address, value)
+    _, missed = confirm_broadcast(port, ph, f"return delay {value}", address, 1,
+                                  {i: value for i in IDS})
+    if missed:
+        check(False, f"{ph.getProtocolVersion()} return delay {value} by the broadcast: missed by {missed}")
+
+
 def wait_still(port, ph, moving_address, seconds=10.0):
     """Until no device reports Moving (1.0: 46, 2.0: 122), at most `seconds`."""
     end = time.monotonic() + seconds
@@ -177,16 +213,17 @@ def protocol1(port):
         check(word(data, 50 + CLUTCH, 2) == clutch, f"1.0 id {i}: clutch length {word(data, 50, 2)} um (expected {clutch})")
     # Torque on by broadcast (no status), then one SYNC_WRITE of three goals.
     ph.write1ByteTxOnly(port, BROADCAST, 24, 1)
+    waits, missed = confirm_broadcast(port, ph, "torque on", 24, 1, {i: 1 for i in IDS})
     for i in IDS:
-        (on, res), waited = settled(lambda: ph.read1ByteTxRx(port, i, 24)[:2],
-                                    lambda r: r == (1, COMM_SUCCESS))
-        check(res == COMM_SUCCESS and on == 1,
-              f"1.0 id {i}: torque enabled by the broadcast ({on}, read after {waited:.3f} s)")
+        check(i not in missed,
+              f"1.0 id {i}: torque enabled by the broadcast (read after {waits[i]:.3f} s)")
     goals = {1: 300, 2: 512, 3: 700}
     sw = GroupSyncWrite(port, ph, 30, 2)
     for i, g in goals.items():
         sw.addParam(i, list(g.to_bytes(2, "little")))
-    check(sw.txPacket() == COMM_SUCCESS, "1.0 SYNC_WRITE of goal positions sent")
+    sent = sw.txPacket() == COMM_SUCCESS
+    _, missed = confirm_broadcast(port, ph, "SYNC_WRITE of goals", 30, 2, goals)
+    check(sent and not missed, f"1.0 SYNC_WRITE of goal positions sent (goals missed by {missed})")
     wait_still(port, ph, 46)
     tol = OPTS["--tolerance"]
     for i, g in goals.items():
@@ -230,9 +267,9 @@ def protocol1(port):
         pos, res, err = ph.read2ByteTxRx(port, 2, 36)
         return res, True if err == 0 and abs(pos - goals[2]) <= tol else f"error {err}, position {pos}"
     timed_reads("1.0 READ present position of id 2", OPTS["--reads"], read_id2)
-    ph.write1ByteTxOnly(port, BROADCAST, 5, 0)  # return delay 0
+    return_delay(port, ph, 5, 0)
     timed_reads("1.0 READ at return delay 0", OPTS["--zero-delay-reads"], read_id2)
-    ph.write1ByteTxOnly(port, BROADCAST, 5, 250)
+    return_delay(port, ph, 5, 250)
     # Switch every device to Protocol 2.0 (broadcast write of Protocol Type).
     # Torque stays on under an emulated load (off, the load would swing the link into the
     # position limit); 1.0 allows EEPROM writes with torque on.
@@ -258,11 +295,16 @@ def protocol2(port):
         bad = [a for a, (s, v) in want.items() if ok and word(data, a, s) != v]
         check(ok and not bad, f"2.0 id {i}: X-series defaults in one READ of 0-70 (result {res}, error {err}, mismatch at {bad})")
     ph.write1ByteTxOnly(port, BROADCAST, 64, 1)
+    _, missed = confirm_broadcast(port, ph, "torque on", 64, 1, {i: 1 for i in IDS})
+    if missed:
+        check(False, f"2.0 torque on by the broadcast: missed by {missed}")
     goals = {1: 1000, 2: 2048, 3: 3000}
     sw = GroupSyncWrite(port, ph, 116, 4)
     for i, g in goals.items():
         sw.addParam(i, list(g.to_bytes(4, "little")))
-    check(sw.txPacket() == COMM_SUCCESS, "2.0 SYNC WRITE of goal positions sent")
+    sent = sw.txPacket() == COMM_SUCCESS
+    _, missed = confirm_broadcast(port, ph, "SYNC WRITE of goals", 116, 4, goals)
+    check(sent and not missed, f"2.0 SYNC WRITE of goal positions sent (goals missed by {missed})")
     wait_still(port, ph, 122)
     sr = GroupSyncRead(port, ph, 132, 4)
     for i in IDS:
@@ -296,13 +338,23 @@ def protocol2(port):
         res = sr.txRxPacket()
         return res, near({i: sr.getData(i, 132, 4) for i in IDS})
     timed_reads("2.0 SYNC READ of 3 devices", OPTS["--sync-reads"], sync_read)
-    ph.write1ByteTxOnly(port, BROADCAST, 9, 0)  # return delay 0
-    timed_reads("2.0 SYNC READ at return delay 0", min(OPTS["--sync-reads"], OPTS["--zero-delay-reads"]), sync_read)
-    ph.write1ByteTxOnly(port, BROADCAST, 9, 250)
-    # Back to Protocol 1.0: torque off first (2.0 refuses EEPROM writes with torque on).
-    # Under an emulated load the link then swings towards the position limit and may latch
-    # a position-limit fault (then a beam overload where it stops: the 0x20 bit); the checks
-    # below need no torque and look only at the range, checksum and instruction bits.
+    # Return Delay Time is in the EEPROM area, which 2.0 refuses to write with torque on:
+    # torque off first. Under an emulated load the link then swings towards the position
+    # limit and may latch a position-limit fault (then a beam overload where it stops: the
+    # 0x20 bit), so from here on the positions are not checked, only whole statuses; the
+    # Lock checks in 1.0 need no torque and look only at the range, checksum and
+    # instruction bits.
+    ph.write1ByteTxOnly(port, BROADCAST, 64, 0)
+    _, missed = confirm_broadcast(port, ph, "torque off", 64, 1, {i: 0 for i in IDS})
+    if missed:
+        check(False, f"2.0 torque off by the broadcast: missed by {missed}")
+    def sync_read_whole():
+        res = sr.txRxPacket()
+        return res, all(sr.isAvailable(i, 132, 4) for i in IDS)
+    return_delay(port, ph, 9, 0)
+    timed_reads("2.0 SYNC READ at return delay 0 (torque off)",
+                min(OPTS["--sync-reads"], OPTS["--zero-delay-reads"]), sync_read_whole)
+    return_delay(port, ph, 9, 250)
     switch_protocol(port, 2.0, 1.0, [(64, 0), (13, 1)])
     return True
 
