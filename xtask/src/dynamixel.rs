@@ -5,7 +5,7 @@
 //! controller's tolerance, the present load's direction under the load, the angle-limit,
 //! range and checksum error bits, back-to-back READs) and Protocol 2.0 (the X-series
 //! table, broadcast ping, SYNC WRITE, SYNC READ, the error numbers). The boards log to
-//! `target/dxl-log-BOARD.idN.log`; a failed check prints each one's first lines after boot.
+//! `target/dxl-log-BOARD.idN.log`; a failed check prints what each logged after boot.
 //!
 //! The SDK comes from PyPI into the virtual environment `target/venv` (made with
 //! `python3 -m venv`; when the `venv` module is missing and we are root with apt-get,
@@ -247,13 +247,20 @@ fn board_logs(board: Board, elf: &Path, log: &Path) {
             .iter()
             .filter(|l| !l.trim_start().starts_with("0.000"))
             .collect();
+        let n = after_boot.len();
         println!(
-            "[{} dynamixel] board {id}'s log: {} lines after boot, the first 20:",
+            "[{} dynamixel] board {id}'s log: {n} lines after boot{}",
             board.feature(),
-            after_boot.len()
+            if n > 20 {
+                ", the first and last 10:"
+            } else {
+                ":"
+            }
         );
-        for line in after_boot.iter().take(20) {
-            println!("[{} dynamixel]   {line}", board.feature());
+        for (i, line) in after_boot.iter().enumerate() {
+            if i < 10 || i + 10 >= n {
+                println!("[{} dynamixel]   {line}", board.feature());
+            }
         }
     }
 }
