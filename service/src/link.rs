@@ -86,6 +86,9 @@ pub struct DynamixelStats {
     /// Status packets dropped: the line was not quiet within the hold limit of their
     /// due time, or a new instruction arrived before they went out.
     pub dropped: u32,
+    /// Packets cut short: the line fell idle in the middle of one, which was abandoned
+    /// (noise, a sender that stopped, or bytes that came too slowly).
+    pub abandoned: u32,
 }
 
 /// What the link could not send (saturating counters).
@@ -258,6 +261,9 @@ impl<'q, W: Write> Link<'q, W> {
         let quiet = now.saturating_sub(d.last_rx_us);
         if !d.idle_seen && quiet >= d.idle_us {
             d.idle_seen = true;
+            if d.bus.receiving() {
+                d.stats.abandoned = d.stats.abandoned.saturating_add(1);
+            }
             d.bus.idle();
             d.splitter.idle();
             d.take_outputs(&mut self.service, actuator);

@@ -131,7 +131,11 @@ fn both_protocols_share_the_line_under_the_half_duplex_rules() {
         "not over another packet: sent once the line was idle"
     );
     assert!(at - t1 < IDLE_US + HOLD_LIMIT_US);
-    assert_eq!(link.dynamixel_stats().unwrap().dropped, 0);
+    let stats = link.dynamixel_stats().unwrap();
+    assert_eq!(stats.dropped, 0);
+    // The 3 bytes of the other packet were all that came: abandoned at the idle line, the
+    // only packet cut short so far.
+    assert_eq!(stats.abandoned, 1);
 
     // Our protocol switches the bus to Protocol 2.0.
     assert_eq!(link.dynamixel().unwrap().protocol(), Protocol::V1);

@@ -199,6 +199,7 @@ mod app {
     fn serial(mut cx: serial::Context) {
         cx.local.link.poll(&mut cx.shared.actuator);
         firmware::bus::follow_baud(cx.local.link, cx.local.uart_bps);
+        firmware::bus::log_losses(cx.local.link);
     }
 
     /// Writes the queued items to defmt (and ends an emulated run).
