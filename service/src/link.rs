@@ -77,7 +77,7 @@ struct DynamixelLine {
     stats: DynamixelStats,
 }
 
-/// What the Dynamixel side sent and held back (saturating counters).
+/// What the Dynamixel side sent, held back and lost (saturating counters).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DynamixelStats {
