@@ -104,8 +104,9 @@ def switch_protocol(port, old, new, writes, rounds=3):
               f"(result, error: {errors})", flush=True)
         if ph_new.ping(port, i)[1] == COMM_SUCCESS:
             silent.remove(i)
-    check(not silent, f"devices {silent} not answering in Protocol {new} "
-          f"({len(missed)} of them answering in {old})")
+    if silent:
+        check(False, f"devices {silent} not answering in Protocol {new} "
+              f"({len(missed)} of them answering in {old})")
 
 
 def confirm_broadcast(port, ph, what, address, size, want):
@@ -134,13 +135,18 @@ def confirm_broadcast(port, ph, what, address, size, want):
     return waits, missed
 
 
+def broadcast_byte(port, ph, what, address, value):
+    """`value` at one-byte `address` on every device by a broadcast write, confirmed
+    (`confirm_broadcast`); a check fails only if it was missed."""
+    ph.write1ByteTxOnly(port, BROADCAST, address, value)
+    _, missed = confirm_broadcast(port, ph, what, address, 1, {i: value for i in IDS})
+    if missed:
+        check(False, f"{ph.getProtocolVersion()} {what} by the broadcast: missed by {missed}")
+
+
 def return_delay(port, ph, address, value):
     """Return Delay Time `value` on every device by a broadcast write, confirmed."""
-    ph.write1ByteTxOnly(port, BROADCAST, address, value)
-    _, missed = confirm_broadcast(port, ph, f"return delay {value}", address, 1,
-                                  {i: value for i in IDS})
-    if missed:
-        check(False, f"{ph.getProtocolVersion()} return delay {value} by the broadcast: missed by {missed}")
+    broadcast_byte(port, ph, f"return delay {value}", address, value)
 
 
 def wait_still(port, ph, moving_address, seconds=10.0):
@@ -294,10 +300,7 @@ def protocol2(port):
         want = {**X_DEFAULTS, 7: (1, i), 64: (1, 1 if OPTS["--load"] else 0)}
         bad = [a for a, (s, v) in want.items() if ok and word(data, a, s) != v]
         check(ok and not bad, f"2.0 id {i}: X-series defaults in one READ of 0-70 (result {res}, error {err}, mismatch at {bad})")
-    ph.write1ByteTxOnly(port, BROADCAST, 64, 1)
-    _, missed = confirm_broadcast(port, ph, "torque on", 64, 1, {i: 1 for i in IDS})
-    if missed:
-        check(False, f"2.0 torque on by the broadcast: missed by {missed}")
+    broadcast_byte(port, ph, "torque on", 64, 1)
     goals = {1: 1000, 2: 2048, 3: 3000}
     sw = GroupSyncWrite(port, ph, 116, 4)
     for i, g in goals.items():
@@ -344,10 +347,7 @@ def protocol2(port):
     # 0x20 bit), so from here on the positions are not checked, only whole statuses; the
     # Lock checks in 1.0 need no torque and look only at the range, checksum and
     # instruction bits.
-    ph.write1ByteTxOnly(port, BROADCAST, 64, 0)
-    _, missed = confirm_broadcast(port, ph, "torque off", 64, 1, {i: 0 for i in IDS})
-    if missed:
-        check(False, f"2.0 torque off by the broadcast: missed by {missed}")
+    broadcast_byte(port, ph, "torque off", 64, 0)
     def sync_read_whole():
         res = sr.txRxPacket()
         return res, all(sr.isAvailable(i, 132, 4) for i in IDS)
