@@ -6,10 +6,8 @@
 //! idle line is noticed within a tick of [`IDLE_US`]. Nothing here touches the UART: the
 //! bytes come from the receive queue the board's receive path fills, whatever fills it.
 
-use core::sync::atomic::{AtomicU32, Ordering};
-
 use service::dynamixel::Bus;
-use service::link::Link;
+use service::link::{DynamixelStats, Link};
 
 /// No byte for this long, µs: a partial Dynamixel packet is abandoned and the next byte
 /// starts a new packet of either protocol. On the emulated boards bytes trickle in as
@@ -86,26 +84,20 @@ pub fn follow_baud(link: &mut Link<'_, crate::board::SerialTx>, applied: &mut u3
     let _ = (link, applied);
 }
 
-/// Packets cut short, as last logged (the link task's own).
-static LOGGED_ABANDONED: AtomicU32 = AtomicU32::new(0);
-/// Statuses dropped, as last logged.
-static LOGGED_DROPPED: AtomicU32 = AtomicU32::new(0);
-
 /// After each run of the link task: a Dynamixel packet cut short by an idle line or a
 /// status dropped is logged with the counts since boot, so that a packet the bus lost
 /// (noise on the wire; on the emulated boards, bytes held back by a loaded host) leaves a
-/// trace in the board's log.
-pub fn log_losses<W: embedded_io::Write>(link: &Link<'_, W>) {
+/// trace in the board's log. `logged` is the counts as last logged (the link task's own).
+pub fn log_losses<W: embedded_io::Write>(link: &Link<'_, W>, logged: &mut DynamixelStats) {
     let Some(stats) = link.dynamixel_stats() else {
         return;
     };
-    let abandoned = LOGGED_ABANDONED.swap(stats.abandoned, Ordering::Relaxed) != stats.abandoned;
-    let dropped = LOGGED_DROPPED.swap(stats.dropped, Ordering::Relaxed) != stats.dropped;
-    if abandoned || dropped {
+    if (stats.abandoned, stats.dropped) != (logged.abandoned, logged.dropped) {
         defmt::warn!(
             "Dynamixel bus: {=u32} packets cut short by an idle line, {=u32} statuses dropped (since boot)",
             stats.abandoned,
             stats.dropped
         );
+        *logged = stats;
     }
 }

@@ -91,6 +91,15 @@ pub struct DynamixelStats {
     pub abandoned: u32,
 }
 
+impl DynamixelStats {
+    /// Nothing sent, held back or lost (a const for a task's local state).
+    pub const NONE: DynamixelStats = DynamixelStats {
+        sent: 0,
+        dropped: 0,
+        abandoned: 0,
+    };
+}
+
 /// What the link could not send (saturating counters).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -41,7 +41,7 @@ mod app {
     use firmware::tick::ControlLoop;
     use firmware::timing::{self, TickAccounting};
     use heapless::spsc::{Consumer, Producer, Queue};
-    use service::link::{Link, Sample, RX_QUEUE, TELEMETRY_QUEUE};
+    use service::link::{DynamixelStats, Link, Sample, RX_QUEUE, TELEMETRY_QUEUE};
     use service::Actuator;
 
     /// Items waiting for the log task (a tick's worth of events several times over).
@@ -195,11 +195,11 @@ mod app {
     }
 
     /// The host link: commands in, replies and telemetry out (see `link`).
-    #[task(binds = EXTI1, priority = 1, shared = [actuator], local = [link, uart_bps: u32 = 0])]
+    #[task(binds = EXTI1, priority = 1, shared = [actuator], local = [link, uart_bps: u32 = 0, bus_logged: DynamixelStats = DynamixelStats::NONE])]
     fn serial(mut cx: serial::Context) {
         cx.local.link.poll(&mut cx.shared.actuator);
         firmware::bus::follow_baud(cx.local.link, cx.local.uart_bps);
-        firmware::bus::log_losses(cx.local.link);
+        firmware::bus::log_losses(cx.local.link, cx.local.bus_logged);
     }
 
     /// Writes the queued items to defmt (and ends an emulated run).
