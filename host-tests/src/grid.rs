@@ -11,8 +11,9 @@
 use std::f64::consts::PI;
 use std::fmt;
 
+use model::calibration::correction::SensorCorrection;
 use model::control::{ClutchSetting, Command, Config};
-use model::supervisor::FaultCode;
+use model::supervisor::{FaultCode, SupervisorConfig};
 use model::{Angle, Inertia, Length};
 use plant::harness::{self, Metrics, Scenario};
 use plant::overrides::{Override, Overrides, Param, Value};
@@ -317,6 +318,22 @@ pub struct Case {
     /// How much longer than configured the clutch may be, µm (0 as drawn; a board takes
     /// 1000 until a calibration confirms the clutch, docs/calibration.md).
     pub clutch_tolerance_um: u32,
+    /// What a calibration of this actuator put in force, as a board installs it (`None`:
+    /// the datasheet configuration and the nominal sensors).
+    pub in_force: Option<InForce>,
+}
+
+/// What a calibration puts in force (docs/calibration.md): the controller's
+/// configuration with the measured motor and link, the sensor correction and the
+/// supervisor's settings.
+#[derive(Clone, Copy, Debug)]
+pub struct InForce {
+    /// The controller's configuration (its clutch the case's).
+    pub config: Config,
+    /// The sensor-correction layer.
+    pub correction: SensorCorrection,
+    /// The supervisor's settings (the pot's error table).
+    pub supervision: SupervisorConfig,
 }
 
 impl fmt::Display for Case {
@@ -337,6 +354,9 @@ impl fmt::Display for Case {
                 Value::Absolute(_) => write!(f, ", {o}")?,
                 Value::Factor(x) => write!(f, ", {}=x{x:.3}", o.param.name())?,
             }
+        }
+        if self.in_force.is_some() {
+            write!(f, ", calibrated")?;
         }
         Ok(())
     }
@@ -372,6 +392,7 @@ impl Case {
             motion,
             plant,
             clutch_tolerance_um: 0,
+            in_force: None,
         }
     }
 
@@ -401,15 +422,20 @@ impl Case {
         a
     }
 
-    /// The scenario: paper preset, hold 0.5 s with the load, command, run 2 s.
+    /// The scenario: paper preset (or what a calibration put in force), hold 0.5 s with
+    /// the load, command, run 2 s.
     #[must_use]
     pub fn scenario(&self) -> Scenario {
-        let mut cfg = Config::paper(Length::from_int(3));
+        let mut cfg = self
+            .in_force
+            .map_or(Config::paper(Length::from_int(3)), |f| f.config);
         cfg.clutch = ClutchSetting::Length(
             Length::from_micro(self.clutch_um * 1000).unwrap_or(Length::from_int(3)),
         );
-        cfg.link_inertia = Inertia::from_micro((self.link_inertia * 1e12).round() as i64)
-            .unwrap_or(cfg.link_inertia);
+        if self.in_force.is_none() {
+            cfg.link_inertia = Inertia::from_micro((self.link_inertia * 1e12).round() as i64)
+                .unwrap_or(cfg.link_inertia);
+        }
         let command = match self.motion {
             Motion::Step(h) => Command::Step { target: rad(h) },
             Motion::Move(h, ms) => Command::Move {
@@ -422,6 +448,10 @@ impl Case {
         let mut sc = Scenario::new(cfg, command);
         sc.load_nm = self.load_nm as f32;
         sc.plant = self.plant;
+        if let Some(f) = self.in_force {
+            sc.correction = f.correction;
+            sc.supervision = f.supervision;
+        }
         sc
     }
 
@@ -478,13 +508,7 @@ fn case_strategy(off_nominal: bool) -> impl Strategy<Value = Case> {
     let plant = proptest::collection::vec(0.0f64..=1.0, OFF_NOMINAL.len());
     (base, plant).prop_map(move |((l, lnj, load, h, neg, raw, d), u)| {
         let h = if neg { -h } else { h };
-        let motion = if raw {
-            Motion::Step(h)
-        } else {
-            let lo = MOVE_MS.0.max(1000.0 * 1.875 * h.abs() / MOVE_PEAK_SPEED);
-            let ms = lo + d * (MOVE_MS.1 - lo).max(0.0);
-            Motion::Move(h, ms.round() as u32)
-        };
+        let motion = motion(h, raw, d);
         let mut plant = Overrides::NONE;
         if off_nominal {
             for ((param, lo, hi, factor), u) in OFF_NOMINAL.iter().zip(u) {
@@ -509,8 +533,22 @@ fn case_strategy(off_nominal: bool) -> impl Strategy<Value = Case> {
             motion,
             plant,
             clutch_tolerance_um: 0,
+            in_force: None,
         }
     })
+}
+
+/// The command of a case: a raw step of `h` rad, or a minimum-jerk move of `h` rad whose
+/// duration is `d` ∈ [0, 1] of the way from the shortest the peak speed allows to 300 ms.
+#[must_use]
+pub fn motion(h: f64, raw: bool, d: f64) -> Motion {
+    if raw {
+        Motion::Step(h)
+    } else {
+        let lo = MOVE_MS.0.max(1000.0 * 1.875 * h.abs() / MOVE_PEAK_SPEED);
+        let ms = lo + d * (MOVE_MS.1 - lo).max(0.0);
+        Motion::Move(h, ms.round() as u32)
+    }
 }
 
 /// `n` cases drawn with `seed` (the same seed gives the same cases).

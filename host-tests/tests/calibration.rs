@@ -7,12 +7,12 @@
 //! `CALIBRATION_BUILDS=500 cargo test -p host-tests --release --test calibration` runs more
 //! builds (default 50).
 
-use host_tests::calibrate::calibrate;
+use host_tests::calibrate::{calibrate, healthy_build};
 use model::calibration::sequence::{Calibration, Failure, Progress};
 use model::control::Config;
 use model::servo::TickInput;
 use model::{Design, Length};
-use plant::harness::{allowable_stress_pa, coupling_at, plant_config};
+use plant::harness::{allowable_stress_pa, plant_config};
 use plant::{BridgeCommand, Plant, PlantConfig, SensorFault, XorShift32};
 
 /// Longest run, ticks (the sequence takes about 5 s).
@@ -41,50 +41,6 @@ fn run(plant: &mut Plant, design: &Design) -> Outcome {
     }
 }
 
-/// A random healthy build: (plant, configured clutch mm, description).
-fn build(rng: &mut XorShift32, design: &Design) -> (PlantConfig, String) {
-    let mut u = |lo: f32, hi: f32| lo + (hi - lo) * rng.next_unit();
-    let sign = |v: f32| if v < 0.5 { -1.0 } else { 1.0 };
-    let l_cfg = u(1.5, 5.0);
-    let config = Config::paper(Length::from_micro((l_cfg * 1e6) as i64).unwrap());
-    let mut pc = plant_config(design, &config, 0.0).unwrap();
-    let actual = (l_cfg + u(-0.5, 0.5)).clamp(1.0, 5.5);
-    pc.coupling = coupling_at(design, &config, actual * 1e-3).unwrap();
-    pc.clutch_length_m = actual * 1e-3;
-    pc.motor.polarity = sign(u(0.0, 1.0));
-    pc.sensors.encoder_direction = sign(u(0.0, 1.0));
-    pc.sensors.pot_direction = sign(u(0.0, 1.0));
-    pc.sensors.encoder_zero_counts = u(0.0, 4095.0) as u16;
-    pc.sensors.current_offset_counts = u(-409.0, 409.0).round();
-    pc.sensors.current_gain = u(0.9, 1.1);
-    pc.sensors.pot_center_counts = 512.0 + u(-102.0, 102.0).round();
-    pc.sensors.pot_gain = u(0.9, 1.1);
-    pc.sensors.pot_nonlinearity_counts = u(-2.0, 2.0);
-    pc.sensors.pot_noise_counts = u(0.2, 0.5);
-    pc.sensors.current_noise_counts = u(0.5, 2.0);
-    pc.sensors.noise_seed = u(1.0, 1e6) as u32;
-    pc.motor.resistance_ohm *= u(0.85, 1.15);
-    pc.motor.back_emf_v_s_per_rad *= u(0.85, 1.15);
-    pc.motor.coulomb_nm *= u(0.85, 1.15);
-    pc.link.inertia_kg_m2 = u(0.3e-3, 5e-3);
-    pc.power_up_angle_rad = u(-1.2, 1.2);
-    let text = format!(
-        "L {l_cfg:.2}→{actual:.2} mm, pol {} enc {} pot {}, I off {} gain {:.3}, pot off {} gain {:.3}, R {:.2} ke {:.3} J_l {:.2e} at {:.2} rad",
-        pc.motor.polarity,
-        pc.sensors.encoder_direction,
-        pc.sensors.pot_direction,
-        pc.sensors.current_offset_counts,
-        pc.sensors.current_gain,
-        pc.sensors.pot_center_counts - 512.0,
-        pc.sensors.pot_gain,
-        pc.motor.resistance_ohm,
-        pc.motor.back_emf_v_s_per_rad,
-        pc.link.inertia_kg_m2,
-        pc.power_up_angle_rad,
-    );
-    (pc, text)
-}
-
 #[test]
 fn calibration_finds_every_healthy_build() {
     let builds: u32 = std::env::var("CALIBRATION_BUILDS")
@@ -102,7 +58,7 @@ fn calibration_finds_every_healthy_build() {
     let (mut worst_link, mut worst_link_seen) = ((0.0f64, 0.0f64), (0.0f64, 0.0f64));
     let mut longest = 0;
     for b in 0..builds {
-        let (pc, text) = build(&mut rng, &design);
+        let (pc, _, text) = healthy_build(&mut rng, &design);
         let mut plant = Plant::new(pc);
         let out = run(&mut plant, &design);
         assert_eq!(out.progress, Progress::Done, "build {b}: {text}");

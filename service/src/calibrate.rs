@@ -18,6 +18,7 @@ use model::calibration::correction::{SensorCorrection, Sign, POT_CENTER};
 use model::calibration::sequence::{
     Calibration as Sequence, CalibrationConfig, CalibrationResult, Failure, Progress,
 };
+use model::control::Config;
 use model::sensors::{ADC_MID, ENCODER_COUNTS};
 use model::servo::{BridgeDemand, ServoState, TickInput, TickOutput};
 use model::Inertia;
@@ -120,7 +121,8 @@ impl Actuator {
 }
 
 /// The result of a run as the store keeps it.
-fn record(r: &CalibrationResult) -> Calibration {
+#[must_use]
+pub fn record(r: &CalibrationResult) -> Calibration {
     let c = &r.correction;
     let sat_u32 = |v: i64| u32::try_from(v.max(0)).unwrap_or(u32::MAX);
     let offset = ((i64::from(c.current_offset_q16) + (1 << 15)) >> 16) - i64::from(ADC_MID);
@@ -147,6 +149,21 @@ fn record(r: &CalibrationResult) -> Calibration {
         current_gain_ppm: q16_ppm(c.current_gain_q16),
         pot_error_centi: Some(r.pot_error.centi),
     }
+}
+
+/// `config` with what `cal` measured in force: the motor's resistance (as the current sense
+/// sees it), back-EMF constant and gear friction, and the link inertia.
+#[must_use]
+pub fn calibrated_config(mut config: Config, cal: &Calibration) -> Config {
+    config.motor.resistance_ohm =
+        fixed::types::I32F32::from_bits(crate::milli_to_q32(cal.wire.resistance_mohm.into()));
+    config.motor.back_emf =
+        fixed::types::I32F32::from_bits(crate::micro_to_q32(cal.wire.back_emf_uv_s_per_rad.into()));
+    config.motor.coulomb =
+        fixed::types::I32F32::from_bits(crate::micro_to_q32(cal.wire.gear_friction_unm.into()));
+    config.link_inertia =
+        Inertia::from_int(i32::try_from(cal.wire.link_inertia_kg_mm2).unwrap_or(i32::MAX));
+    config
 }
 
 /// Q16 → ppm, rounded, within the record's gain range (the sequence keeps gains there).
@@ -250,16 +267,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         cal: &Calibration,
         correction: Option<SensorCorrection>,
     ) -> Result<(), ErrorCode> {
-        let mut config = self.service.config;
-        config.motor.resistance_ohm =
-            fixed::types::I32F32::from_bits(crate::milli_to_q32(cal.wire.resistance_mohm.into()));
-        config.motor.back_emf = fixed::types::I32F32::from_bits(crate::micro_to_q32(
-            cal.wire.back_emf_uv_s_per_rad.into(),
-        ));
-        config.motor.coulomb =
-            fixed::types::I32F32::from_bits(crate::micro_to_q32(cal.wire.gear_friction_unm.into()));
-        config.link_inertia =
-            Inertia::from_int(i32::try_from(cal.wire.link_inertia_kg_mm2).unwrap_or(i32::MAX));
+        let config = calibrated_config(self.service.config, cal);
         let correction = correction.unwrap_or_else(|| {
             crate::correction::sensor_correction(cal, &self.service.supervision)
         });

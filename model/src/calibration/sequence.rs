@@ -869,16 +869,22 @@ impl Calibration {
         // nrad per raw encoder count.
         let nrad = 6_283_185_307i128 / i128::from(self.cfg.encoder_counts_per_turn);
         // R from every move's start: the current extrapolated to t = 0 (ω = 0 there, no
-        // back-EMF): R [mΩ] = V[mV]·1024/counts.
-        let mut r_sum = 0i128;
-        for m in &self.moves {
+        // back-EMF): R [mΩ] = V[mV]·1024/counts. A move that reached its target within
+        // two ticks (the gear already there) has no start currents: left out, not a dead
+        // sense (one healthy build in 500 failed so).
+        let (mut r_sum, mut r_n) = (0i128, 0i128);
+        for m in self.moves.iter().filter(|m| m.k >= 3) {
             let i0 = 2 * i128::from(m.i1) - i128::from(m.i2);
             if i0.abs() < 16 {
                 return self.fail(Failure::CurrentDead);
             }
             r_sum += v_mv * PER_A * 1000 / i0.abs();
+            r_n += 1;
         }
-        let r_mohm = r_sum / 1000 / self.moves.len() as i128;
+        if r_n == 0 {
+            return self.fail(Failure::CurrentDead);
+        }
+        let r_mohm = r_sum / 1000 / r_n;
         let (mut ke_sum, mut j_sum, mut n_used) = (0i128, 0i128, 0i128);
         let (mut i_plus, mut i_minus, mut w_plus, mut w_minus) = (0i128, 0i128, 0i128, 0i128);
         for m in &self.moves {
