@@ -52,9 +52,16 @@ fn calibrated_builds_meet_the_grid_limits() {
         let config =
             Config::paper(Length::from_micro(i64::from(configured_um) * 1000).expect("1.5…5 mm"));
         let supervision = SupervisorConfig::DEFAULT;
+        let mut correction = service::correction::sensor_correction(&cal, &supervision);
+        // The pot's electrical centre is the absolute zero, which no sensor can find: the
+        // user sets it by mounting the horn (docs/calibration.md). The cases' commands are
+        // angles from the true zero, so the centre is set there, within the ±3 counts of
+        // the grid's pot offset.
+        let centre = pc.sensors.pot_center_counts + 3.0 * (2.0 * rng.next_unit() - 1.0);
+        correction.pot_center_q16 = (centre * 65536.0).round() as i32;
         let in_force = InForce {
             config: service::calibrate::calibrated_config(config, &cal),
-            correction: service::correction::sensor_correction(&cal, &supervision),
+            correction,
             supervision: service::correction::with_pot_error(&cal, &supervision),
         };
         let tolerance_um = tolerance_in_force_um(
@@ -116,8 +123,8 @@ fn calibrated_builds_meet_the_grid_limits() {
             bad.len(),
             outcomes.len()
         );
-        if let Some(o) = bad.first() {
-            println!("      e.g. #{} {}", o.index, o.case);
+        if !bad.is_empty() {
+            println!("      #{}: {}", worst.index, worst.case);
         }
         if ENFORCED.contains(name) && !bad.is_empty() {
             failed.push(*name);
