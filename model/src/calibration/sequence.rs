@@ -880,7 +880,7 @@ impl Calibration {
         // thrown back on stiff beams after the last move) slows at once, and its
         // extrapolated current came out up to 7 % low (R high). All moves if none did.
         let started = |m: &&Move| m.k >= 3;
-        let free = |m: &&Move| started(m) && i64::from(m.i2).abs() < i64::from(m.i1).abs();
+        let free = |m: &&Move| started(m) && m.i2.abs() < m.i1.abs();
         let any_free = self.moves.iter().any(|m| free(&m));
         let (mut r_sum, mut r_n) = (0i128, 0i128);
         for m in self
