@@ -870,15 +870,13 @@ impl Calibration {
             / 1000;
         // nrad per raw encoder count.
         let nrad = 6_283_185_307i128 / i128::from(self.cfg.encoder_counts_per_turn);
-        // R from every move's start: the current extrapolated to t = 0 (ω = 0 there, no
-        // back-EMF): R [mΩ] = V[mV]·1024/counts. A move that reached its target within
-        // two ticks (the gear already there) has no start currents: left out, not a dead
-        // sense (one healthy build in 500 failed so).
-        // Only the moves whose current fell from the first to the second tick: there the
-        // gear crossed the free play alone, its back-EMF rising linearly, which the
-        // extrapolation assumes. A gear that started against the link (a heavy link
-        // thrown back on stiff beams after the last move) slows at once, and its
-        // extrapolated current came out up to 7 % low (R high). All moves if none did.
+        // R from the moves' starts: the current extrapolated to t = 0 (ω = 0 there, no
+        // back-EMF): R [mΩ] = V[mV]·1024/counts. The extrapolation assumes the gear
+        // crossing the free play alone, its back-EMF rising linearly, so the current
+        // falls from the first tick to the second; only such moves count (all if none).
+        // A gear that starts against the link (a heavy link thrown back on stiff beams)
+        // slows at once: R came out up to 7 % high. A move that reached its target
+        // within two ticks has no start currents (not a dead sense).
         let started = |m: &&Move| m.k >= 3;
         let free = |m: &&Move| started(m) && m.i2.abs() < m.i1.abs();
         let any_free = self.moves.iter().any(|m| free(&m));
