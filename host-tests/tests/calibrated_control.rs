@@ -34,7 +34,7 @@ const ENFORCED: [&str; 4] = [
 ];
 
 #[test]
-fn calibrated_builds_meet_the_grid_limits() {
+fn calibrated_builds_run_the_grid_cases_within_the_beams() {
     let builds: u32 = std::env::var("CALIBRATED_BUILDS")
         .ok()
         .and_then(|s| s.parse().ok())
