@@ -152,8 +152,7 @@ fn calibration_finds_every_healthy_build() {
 /// 1.51 mm configured, 1.05 mm actual, 4.35e-3 kg·m²) is thrown back against the gear after
 /// each move, so most moves start with the gear against the link: their start current,
 /// extrapolated as if the gear crossed the free play alone, gave R 6.9 % high. The
-/// sequence now takes R from the moves whose current fell from the first tick to the
-/// second.
+/// sequence now takes R from the moves whose current fell over the first three ticks.
 #[test]
 fn a_gear_that_starts_against_a_heavy_link_still_gives_r() {
     let design = Design::paper();

@@ -345,9 +345,10 @@ struct Move {
     dir: i32,
     /// Ticks since the start.
     k: u32,
-    /// Current (counts from the offset, canonical sign) at ticks 1 and 2.
+    /// Current (counts from the offset, canonical sign) at ticks 1, 2 and 3.
     i1: i64,
     i2: i64,
+    i3: i64,
     /// Σ current since the start (cumulative charge, counts·ms).
     cum_i: i64,
     /// Over the steady part: Σ of the cumulative charge, of the driven ticks and of the
@@ -725,6 +726,8 @@ impl Calibration {
             m.i1 = i;
         } else if k == 3 {
             m.i2 = i;
+        } else if k == 4 {
+            m.i3 = i;
         }
         if k >= 2 {
             m.cum_i += i;
@@ -873,12 +876,12 @@ impl Calibration {
         // R from the moves' starts: the current extrapolated to t = 0 (ω = 0 there, no
         // back-EMF): R [mΩ] = V[mV]·1024/counts. The extrapolation assumes the gear
         // crossing the free play alone, its back-EMF rising linearly, so the current
-        // falls from the first tick to the second; only such moves count (all if none).
+        // falls over the first three ticks; only such moves count (all if none).
         // A gear that starts against the link (a heavy link thrown back on stiff beams)
         // slows at once: R came out up to 7 % high. A move that reached its target
         // within two ticks has no start currents (not a dead sense).
         let started = |m: &&Move| m.k >= 3;
-        let free = |m: &&Move| started(m) && m.i2.abs() < m.i1.abs();
+        let free = |m: &&Move| m.k >= 4 && m.i2.abs() < m.i1.abs() && m.i3.abs() < m.i2.abs();
         let any_free = self.moves.iter().any(|m| free(&m));
         let (mut r_sum, mut r_n) = (0i128, 0i128);
         for m in self
