@@ -656,6 +656,21 @@ impl Outcome {
     }
 }
 
+/// Metric `k` (its index in [`Outcome::figures`]) over `outcomes`: the case with the worst
+/// value and the cases that violate its limit.
+///
+/// # Panics
+/// `outcomes` is empty.
+#[must_use]
+pub fn metric(outcomes: &[Outcome], k: usize) -> (&Outcome, Vec<&Outcome>) {
+    let worst = outcomes
+        .iter()
+        .max_by(|a, b| a.figures()[k].1.total_cmp(&b.figures()[k].1))
+        .expect("cases");
+    let bad = outcomes.iter().filter(|o| !o.figures()[k].3).collect();
+    (worst, bad)
+}
+
 /// Runs one case.
 ///
 /// # Panics

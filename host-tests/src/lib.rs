@@ -8,3 +8,13 @@ pub mod grid;
 pub mod oracle;
 pub mod reference;
 pub mod sim;
+
+/// The number in environment variable `name`, or `default` when it is unset or not a
+/// number (the long runs' sizes and seeds).
+#[must_use]
+pub fn env_or(name: &str, default: u64) -> u64 {
+    std::env::var(name)
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}

@@ -35,10 +35,7 @@ const ENFORCED: [&str; 4] = [
 
 #[test]
 fn calibrated_builds_run_the_grid_cases_within_the_beams() {
-    let builds: u32 = std::env::var("CALIBRATED_BUILDS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(50);
+    let builds = host_tests::env_or("CALIBRATED_BUILDS", 50);
     let design = Design::paper();
     // Not the calibration test's seed: other builds.
     let mut rng = XorShift32::new(0x0CA1_1B8D);
@@ -110,12 +107,8 @@ fn calibrated_builds_run_the_grid_cases_within_the_beams() {
     let names = outcomes[0].figures().map(|f| f.0);
     let mut failed = Vec::new();
     for (k, name) in names.iter().enumerate() {
-        let bad: Vec<&Outcome> = outcomes.iter().filter(|o| !o.figures()[k].3).collect();
+        let (worst, bad) = grid::metric(&outcomes, k);
         let loaded = bad.iter().filter(|o| o.case.load_nm != 0.0).count();
-        let worst = outcomes
-            .iter()
-            .max_by(|a, b| a.figures()[k].1.total_cmp(&b.figures()[k].1))
-            .expect("cases");
         let (_, value, limit, _) = worst.figures()[k];
         println!(
             "  {name:<30} worst {value:>9.3} (limit {limit}) in case #{}; violations {}/{} ({loaded} with a load)",

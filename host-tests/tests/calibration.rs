@@ -43,10 +43,7 @@ fn run(plant: &mut Plant, design: &Design) -> Outcome {
 
 #[test]
 fn calibration_finds_every_healthy_build() {
-    let builds: u32 = std::env::var("CALIBRATION_BUILDS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(50);
+    let builds = host_tests::env_or("CALIBRATION_BUILDS", 50);
     let design = Design::paper();
     let mut rng = XorShift32::new(0x00C0_FFEE);
     let (mut worst_r, mut worst_ke, mut worst_j, mut worst_off, mut worst_gain) =

@@ -19,6 +19,7 @@
 //! grid -- --nocapture`. Limits not yet met are listed in [`OPEN`]: they are measured and
 //! printed but only enforced with `VSA_GRID_STRICT=1`.
 
+use host_tests::env_or;
 use host_tests::grid::{self, Outcome};
 use plant::overrides::Override;
 
@@ -41,13 +42,6 @@ const OPEN: &[&str] = &[
     "stress after a trip / σ_allow",
     "raw-step settling / T_opt",
 ];
-
-fn env_or(name: &str, default: u64) -> u64 {
-    std::env::var(name)
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
 
 fn sweep(label: &str, off_nominal: bool, seed_offset: u64) {
     let n = env_or("VSA_GRID_RUNS", 250) as usize;
@@ -94,12 +88,8 @@ fn sweep(label: &str, off_nominal: bool, seed_offset: u64) {
     }
     let mut failed = Vec::new();
     for (k, name) in names.iter().enumerate() {
-        let worst = outcomes
-            .iter()
-            .max_by(|a, b| a.figures()[k].1.total_cmp(&b.figures()[k].1))
-            .expect("cases");
+        let (worst, bad) = grid::metric(&outcomes, k);
         let (_, value, limit, _) = worst.figures()[k];
-        let bad: Vec<&Outcome> = outcomes.iter().filter(|o| !o.figures()[k].3).collect();
         let open = OPEN.contains(name);
         println!(
             "  {name:<28} worst {value:>9.3} (limit {limit}) in case #{}: {}; violations {}/{}{}",
