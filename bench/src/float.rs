@@ -1002,7 +1002,14 @@ impl FloatController {
             (1.0, 1.0, 1.0)
         };
         // A loaded link: the beams' torque error above the corner puts the gear in the loop.
-        let torque_error_hp = tau - tau_ref - self.torque_error_lp;
+        // Held in the count with a still link: no J_g·Δω_g/dt (noise) in the torque error.
+        let held = in_count && stationary;
+        let tau_p = if held && libm::fabsf(self.w_link) < s.w_deadband {
+            tau + s.jg_fs * dw
+        } else {
+            tau
+        };
+        let torque_error_hp = tau_p - tau_ref - self.torque_error_lp;
         self.torque_error_lp += s.torque_lp_beta * torque_error_hp;
         let e_p = if floating {
             e_g
@@ -1018,7 +1025,12 @@ impl FloatController {
             + u_coulomb
             + u_p
             + u_i
-            + s.kd * soft_d * (self.w_ref - self.w_fb);
+            // Held, a gear velocity below a quarter of the dead band is noise: no damping.
+            + if held && libm::fabsf(self.w_fb) < 0.25 * s.w_deadband {
+                0.0
+            } else {
+                s.kd * soft_d * (self.w_ref - self.w_fb)
+            };
 
         // --- limits ---
         let emf = s.duty_per_w * w_gear;

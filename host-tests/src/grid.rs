@@ -252,6 +252,41 @@ pub fn unloaded_links_with_bearing_friction() -> [Case; 3] {
     ]
 }
 
+/// Three nominal grid cases with a current sense of 2 counts RMS noise
+/// (`VSA_GRID_PLANT=current-noise=2`), held under a load after a raw step, whose held loop
+/// turned the noise into duty before it was kept out (docs/design.md §11, "Current-sense
+/// noise at rest"): seed 102 #46 (the gear crept until the link crossed its count's edge
+/// and the P term kicked it back, 69 ‰ of duty span), seed 5 #127 (the gear's inertial
+/// torque in the torque error at a soft setting, 22 ‰) and seed 104 #140 (113 ‰), written
+/// out in full.
+#[must_use]
+pub fn held_under_a_noisy_current_sense() -> [Case; 3] {
+    let noise = "current-noise=2";
+    [
+        Case::written(
+            2822,
+            9.324_555_258_748_333e-4,
+            -0.263_159_28,
+            Motion::Step(0.157_746_944_624_677_5),
+            noise,
+        ),
+        Case::written(
+            5869,
+            4.114_146_147_507_471e-4,
+            0.288_893_88,
+            Motion::Step(0.163_192_271_959_820_97),
+            noise,
+        ),
+        Case::written(
+            2737,
+            4.836_459_028_260_873e-3,
+            -0.113_711_014,
+            Motion::Step(0.597_003_439_019_255_6),
+            noise,
+        ),
+    ]
+}
+
 /// Three nominal grid cases of seed 1, small raw steps of a heavy link under a light load,
 /// that overshot by crossing the free play near the target before the profile kept the
 /// beams on one wall (docs/design.md §11, "Small raw steps"): #8 (11.1 %), #137 (14.4 %)

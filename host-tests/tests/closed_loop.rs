@@ -208,6 +208,15 @@ fn loaded_moves_on_a_warm_motor_scale_their_feed_forward() {
     assert_settle_without_overshoot(&grid::loaded_moves_on_a_warm_motor());
 }
 
+/// Held under a load with a noisy current sense (2 counts RMS), the link stays in its count
+/// and the duty still: the noise neither enters the P term's torque error nor the
+/// derivative (design §11, "Current-sense noise at rest"; 69, 22 and 113 ‰ of duty span
+/// before). The three nominal grid cases of `grid::held_under_a_noisy_current_sense`.
+#[test]
+fn a_held_link_stays_still_under_a_noisy_current_sense() {
+    assert_rest_without_fault(&grid::held_under_a_noisy_current_sense());
+}
+
 /// An unloaded link with dry friction in its bearing stops wherever the free play left it
 /// and the rest hold keeps the gear still: 2–4.4 counts off the target. The creep pushes
 /// it there at a crawl and it rests within a count, the duty still (design §11, "The creep

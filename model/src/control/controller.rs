@@ -543,7 +543,17 @@ impl Controller {
         // heavier than configured limit-cycle at its anti-resonance (design §11, step 8).
         // Not for a sine: its two-mass feed-forward places the gear, and near the coupling
         // resonance the term cost tracking.
-        let torque_error_hp = tau
+        // Held in the reference's count with a still link (its filtered encoder velocity
+        // below the observer's dead band), the gear does not accelerate: τ̂'s J_g·Δω_g/dt
+        // is then the difference of two noisy observer samples × J_g/dt (3.2 N·m per
+        // rad/s), so it is left out of this error (design §11, "Current-sense noise at rest").
+        let held = in_count && stationary;
+        let tau_p = if held && self.w_link.saturating_abs() < s.w_deadband_q16 {
+            tau.saturating_add(s.gear_inertia_per_dt.apply(dw))
+        } else {
+            tau
+        };
+        let torque_error_hp = tau_p
             .saturating_sub(tau_ref)
             .saturating_sub(self.torque_error_lp);
         self.torque_error_lp = self
@@ -566,7 +576,16 @@ impl Controller {
                 })
             })
             .saturating_add(u_i)
-            .saturating_add(s.kd.apply(self.w_ref.saturating_sub(self.w_fb) >> soft));
+            // Held in the count, an observed gear velocity below a quarter of the dead band
+            // (about 5 current counts) is sense noise: damping it made duty noise and, under
+            // a load, a creep that walked the link to its count's edge.
+            .saturating_add(
+                if held && self.w_fb.saturating_abs() < s.w_deadband_q16 >> 2 {
+                    0
+                } else {
+                    s.kd.apply(self.w_ref.saturating_sub(self.w_fb) >> soft)
+                },
+            );
 
         // --- limits: current window about the back-EMF, duty limit ---
         let emf = s.duty_per_w.apply(w_gear);
