@@ -1025,8 +1025,8 @@ impl FloatController {
             + u_coulomb
             + u_p
             + u_i
-            // Held, a gear velocity below a quarter of the dead band is noise: no damping.
-            + if held && libm::fabsf(self.w_fb) < 0.25 * s.w_deadband {
+            // Held, a gear velocity below an eighth of the dead band is noise: no damping.
+            + if held && libm::fabsf(self.w_fb) < 0.125 * s.w_deadband {
                 0.0
             } else {
                 s.kd * soft_d * (self.w_ref - self.w_fb)

@@ -576,11 +576,11 @@ impl Controller {
                 })
             })
             .saturating_add(u_i)
-            // Held in the count, an observed gear velocity below a quarter of the dead band
-            // (about 5 current counts) is sense noise: damping it made duty noise and, under
-            // a load, a creep that walked the link to its count's edge.
+            // Held in the count, a filtered gear velocity below an eighth of the dead band
+            // (2.7 current counts, 4σ of a 2-count sense's noise) is noise: damping it made
+            // duty noise and, under a load, a creep that walked the link to its count's edge.
             .saturating_add(
-                if held && self.w_fb.saturating_abs() < s.w_deadband_q16 >> 2 {
+                if held && self.w_fb.saturating_abs() < s.w_deadband_q16 >> 3 {
                     0
                 } else {
                     s.kd.apply(self.w_ref.saturating_sub(self.w_fb) >> soft)
