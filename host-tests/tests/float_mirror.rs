@@ -210,10 +210,7 @@ fn a_loop_that_hunts_at_rest_softens_in_both() {
 }
 
 /// On identical readings the first ticks agree exactly, until the fixed-point deflection
-/// feed-forward's Q16 step (2.5 ‰) shows. The second tick's current (48 counts) keeps the
-/// outputs off a rounding boundary: with 17 counts the held loop's output is below 1 ‰
-/// (no damping of so small a gear velocity, design §11, "Current-sense noise at rest"),
-/// and the gear error's Q16 step (0.2 ‰ at K_p/4) decided the rounding at L = 5 mm.
+/// feed-forward's Q16 step (2.5 ‰) shows.
 #[test]
 fn first_ticks_agree() {
     let design = Design::paper();
@@ -222,7 +219,7 @@ fn first_ticks_agree() {
         let mut c = model::Controller::new(&design, &config).unwrap();
         let sched = *c.schedule();
         let mut f = FloatController::new(FloatSchedule::new(&sched, &config));
-        for (i, (enc, pot, adc)) in [(7u16, 515u16, 2048u16), (7, 515, 2000)]
+        for (i, (enc, pot, adc)) in [(7u16, 515u16, 2048u16), (7, 515, 2031)]
             .into_iter()
             .enumerate()
         {
