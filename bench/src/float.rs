@@ -894,7 +894,8 @@ impl FloatController {
         self.i_filtered += s.alpha * (current - self.i_filtered);
         let dw = self.w_fb - self.w_gear_prev;
         self.w_gear_prev = self.w_fb;
-        let tau_i = s.kt * self.i_filtered - s.jg_fs * dw - s.bv * w_gear;
+        let gear_inertial = s.jg_fs * dw;
+        let tau_i = s.kt * self.i_filtered - gear_inertial - s.bv * w_gear;
         let tau = match m.gear_pot {
             Some(pot) if s.w_defl != 0.0 => {
                 let pot = i32::from(pot) & (POT_COUNTS - 1);
@@ -1005,7 +1006,7 @@ impl FloatController {
         // Held in the count with a still link: no J_g·Δω_g/dt (noise) in the torque error.
         let held = in_count && stationary;
         let tau_p = if held && libm::fabsf(self.w_link) < s.w_deadband {
-            tau + s.jg_fs * dw
+            tau + gear_inertial
         } else {
             tau
         };

@@ -371,9 +371,10 @@ impl Controller {
             .saturating_add(s.alpha.apply(current.saturating_sub(self.i_filtered)));
         let dw = self.w_fb.saturating_sub(self.w_gear_prev);
         self.w_gear_prev = self.w_fb;
+        let gear_inertial = s.gear_inertia_per_dt.apply(dw);
         let tau_i =
             s.kt.apply(self.i_filtered)
-                .saturating_sub(s.gear_inertia_per_dt.apply(dw))
+                .saturating_sub(gear_inertial)
                 .saturating_sub(s.bv.apply(w_gear));
         let tau = match m.gear_pot {
             Some(pot) if s.w_defl_q16 != 0 => {
@@ -549,7 +550,7 @@ impl Controller {
         // rad/s), so it is left out of this error (design §11, "Current-sense noise at rest").
         let held = in_count && stationary;
         let tau_p = if held && self.w_link.saturating_abs() < s.w_deadband_q16 {
-            tau.saturating_add(s.gear_inertia_per_dt.apply(dw))
+            tau.saturating_add(gear_inertial)
         } else {
             tau
         };
