@@ -27,20 +27,26 @@ use plant::overrides::Override;
 /// worst case and the number of violations; enforced only under `VSA_GRID_STRICT=1`).
 /// Each is still violated on the default draw (docs/design.md §11, "Not reached yet"):
 /// overshoot, settling, steady-state error and both rest spans by runs without load (the
-/// link bounces in the free play), peak stress by free-play impacts of heavy links, faults
-/// and stress after a trip by off-nominal runs whose impacts overload the beams, raw-step
-/// settling at soft settings with heavy links and for small steps (the planned profile of
-/// `model::control::dash` leaves the loop too little time there). An entry leaves this list when its metric holds on the long run.
+/// link bounces in the free play), raw-step settling at soft settings with heavy links and
+/// for small steps (the planned profile of `model::control::dash` leaves the loop too
+/// little time there). An entry leaves this list when its metric holds on the long run.
 const OPEN: &[&str] = &[
     "overshoot %",
     "settling / limit",
     "steady-state error counts",
     "rest count span",
     "rest duty span ‰",
+    "raw-step settling / T_opt",
+];
+
+/// Open on the off-nominal grid only: peak stress by free-play impacts of links heavier
+/// than configured, faults and stress after a trip by runs whose impacts overload the
+/// beams. With the nominal actuator they hold on the long run (5 000 cases: no fault, worst
+/// peak stress 0.978 σ_allow) and are enforced.
+const OPEN_OFF_NOMINAL: &[&str] = &[
     "peak stress / σ_allow",
     "faults latched",
     "stress after a trip / σ_allow",
-    "raw-step settling / T_opt",
 ];
 
 fn sweep(label: &str, off_nominal: bool, seed_offset: u64) {
@@ -83,14 +89,16 @@ fn sweep(label: &str, off_nominal: bool, seed_offset: u64) {
     {
         dump(&format!("{path}.{seed}.tsv"), &names, &outcomes);
     }
-    for o in OPEN {
+    let open_here =
+        |name: &str| OPEN.contains(&name) || (off_nominal && OPEN_OFF_NOMINAL.contains(&name));
+    for o in OPEN.iter().chain(OPEN_OFF_NOMINAL) {
         assert!(names.contains(o), "OPEN names an unknown metric: {o}");
     }
     let mut failed = Vec::new();
     for (k, name) in names.iter().enumerate() {
         let (worst, bad) = grid::metric(&outcomes, k);
         let (_, value, limit, _) = worst.figures()[k];
-        let open = OPEN.contains(name);
+        let open = open_here(name);
         println!(
             "  {name:<28} worst {value:>9.3} (limit {limit}) in case #{}: {}; violations {}/{}{}",
             worst.index,
