@@ -145,29 +145,33 @@ fn calibration_finds_every_healthy_build() {
     );
 }
 
-/// A heavy link on a clutch much stiffer than configured (build 432 of the long run: L
-/// 1.51 mm configured, 1.05 mm actual, 4.35e-3 kg·m²) is thrown back against the gear after
-/// each move, so most moves start with the gear against the link: their start current,
-/// extrapolated as if the gear crossed the free play alone, gave R 6.9 % high. The
-/// sequence now takes R from the moves whose current fell over the first three ticks.
+/// A heavy link on a clutch much stiffer than configured is thrown back against the gear
+/// after each move, so most moves start with the gear against the link: their start
+/// current, extrapolated as if the gear crossed the free play alone, reads R high. Build 432
+/// of the long run (L 1.51 mm configured, 1.05 mm actual, 4.35e-3 kg·m²) gave R 6.9 % high
+/// until the sequence took R from the moves whose current fell over the first three ticks;
+/// build 1 320 (1.83 → 1.38 mm, 4.66e-3 kg·m²) gave 5.3 % until it left out the highest
+/// of the moves' R (the error is one-sided).
 #[test]
 fn a_gear_that_starts_against_a_heavy_link_still_gives_r() {
     let design = Design::paper();
     let mut rng = XorShift32::new(0x00C0_FFEE);
-    for _ in 0..432 {
-        let _ = healthy_build(&mut rng, &design);
+    for b in 0..=1320 {
+        let (pc, _, text) = healthy_build(&mut rng, &design);
+        if b != 432 && b != 1320 {
+            continue;
+        }
+        let mut plant = Plant::new(pc);
+        let out = run(&mut plant, &design);
+        assert_eq!(out.progress, Progress::Done, "{text}");
+        let r = f64::from(out.cal.result().unwrap().resistance_mohm) * 1e-3;
+        let r_seen = f64::from(pc.motor.resistance_ohm) / f64::from(pc.sensors.current_gain);
+        println!("build {b}, {text}: R {r:.3} Ω against {r_seen:.3} as the sense sees it");
+        assert!(
+            (r / r_seen - 1.0).abs() <= 0.05,
+            "build {b}, {text}: R {r:.3} vs {r_seen:.3}"
+        );
     }
-    let (pc, _, text) = healthy_build(&mut rng, &design);
-    let mut plant = Plant::new(pc);
-    let out = run(&mut plant, &design);
-    assert_eq!(out.progress, Progress::Done, "{text}");
-    let r = f64::from(out.cal.result().unwrap().resistance_mohm) * 1e-3;
-    let r_seen = f64::from(pc.motor.resistance_ohm) / f64::from(pc.sensors.current_gain);
-    println!("{text}: R {r:.3} Ω against {r_seen:.3} as the sense sees it");
-    assert!(
-        (r / r_seen - 1.0).abs() <= 0.05,
-        "{text}: R {r:.3} vs {r_seen:.3}"
-    );
 }
 
 fn nominal_plant() -> (Design, PlantConfig) {

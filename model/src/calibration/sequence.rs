@@ -878,12 +878,15 @@ impl Calibration {
         // crossing the free play alone, its back-EMF rising linearly, so the current
         // falls over the first three ticks; only such moves count (all if none).
         // A gear that starts against the link (a heavy link thrown back on stiff beams)
-        // slows at once: R came out up to 7 % high. A move that reached its target
-        // within two ticks has no start currents (not a dead sense).
+        // slows at once: R came out up to 7 % high. That error is one-sided, so the
+        // highest of the moves' R are left out: the two highest of five or more, the
+        // highest of three or four. A move that reached its target within two ticks has
+        // no start currents (not a dead sense).
         let started = |m: &&Move| m.k >= 3;
         let free = |m: &&Move| m.k >= 4 && m.i2.abs() < m.i1.abs() && m.i3.abs() < m.i2.abs();
         let any_free = self.moves.iter().any(|m| free(&m));
         let (mut r_sum, mut r_n) = (0i128, 0i128);
+        let (mut r_top, mut r_second) = (0i128, 0i128);
         for m in self
             .moves
             .iter()
@@ -893,11 +896,22 @@ impl Calibration {
             if i0.abs() < 16 {
                 return self.fail(Failure::CurrentDead);
             }
-            r_sum += v_mv * PER_A * 1000 / i0.abs();
+            let r = v_mv * PER_A * 1000 / i0.abs();
+            if r > r_top {
+                (r_top, r_second) = (r, r_top);
+            } else if r > r_second {
+                r_second = r;
+            }
+            r_sum += r;
             r_n += 1;
         }
         if r_n == 0 {
             return self.fail(Failure::CurrentDead);
+        }
+        if r_n >= 5 {
+            (r_sum, r_n) = (r_sum - r_top - r_second, r_n - 2);
+        } else if r_n >= 3 {
+            (r_sum, r_n) = (r_sum - r_top, r_n - 1);
         }
         let r_mohm = r_sum / 1000 / r_n;
         let (mut ke_sum, mut j_sum, mut n_used) = (0i128, 0i128, 0i128);
