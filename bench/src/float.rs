@@ -38,9 +38,10 @@ use model::control::creep::{Creep, CREEP_SPEED};
 use model::control::hunt::Hunt;
 use model::control::schedule::{
     CONTACT_CURRENT_TOLERANCE, CONTACT_TORQUE_NM, COULOMB_RAMP_RAD_S,
-    CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM, IMPACT_SPEED_FRACTION,
-    OBSERVER_RATIO, RESISTANCE_LOW, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM,
-    REST_ZONE_FREE_PLAYS, SUPPLY_TOLERANCE, TORQUE_FEEDBACK_CORNER,
+    CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM,
+    HELD_DAMPING_DEADBAND_SHIFT, IMPACT_SPEED_FRACTION, OBSERVER_RATIO, RESISTANCE_LOW,
+    RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM, REST_ZONE_FREE_PLAYS, SUPPLY_TOLERANCE,
+    TORQUE_FEEDBACK_CORNER,
 };
 use model::control::{dash, move_drive, Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
@@ -1027,7 +1028,10 @@ impl FloatController {
             + u_p
             + u_i
             // Held, a gear velocity below an eighth of the dead band is noise: no damping.
-            + if held && libm::fabsf(self.w_fb) < 0.125 * s.w_deadband {
+            + if held
+                && libm::fabsf(self.w_fb)
+                    < s.w_deadband / (1u32 << HELD_DAMPING_DEADBAND_SHIFT) as f32
+            {
                 0.0
             } else {
                 s.kd * soft_d * (self.w_ref - self.w_fb)

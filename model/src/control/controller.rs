@@ -10,7 +10,7 @@ use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Q16_ONE};
 use super::hunt::Hunt;
 use super::move_drive::MoveDrive;
 use super::move_duration;
-use super::schedule::{Schedule, TICKS_PER_S};
+use super::schedule::{Schedule, HELD_DAMPING_DEADBAND_SHIFT, TICKS_PER_S};
 use super::sine_feedforward::FeedForward;
 use super::trajectory::{Command, Reference, Trajectory};
 use crate::design::Design;
@@ -578,10 +578,12 @@ impl Controller {
             })
             .saturating_add(u_i)
             // Held in the count, a filtered gear velocity below an eighth of the dead band
-            // (2.7 current counts, 4σ of a 2-count sense's noise) is noise: damping it made
-            // duty noise and, under a load, a creep that walked the link to its count's edge.
+            // (`HELD_DAMPING_DEADBAND_SHIFT`) is noise: damping it made duty noise and, under
+            // a load, a creep that walked the link to its count's edge.
             .saturating_add(
-                if held && self.w_fb.saturating_abs() < s.w_deadband_q16 >> 3 {
+                if held
+                    && self.w_fb.saturating_abs() < s.w_deadband_q16 >> HELD_DAMPING_DEADBAND_SHIFT
+                {
                     0
                 } else {
                     s.kd.apply(self.w_ref.saturating_sub(self.w_fb) >> soft)

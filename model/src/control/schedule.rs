@@ -57,6 +57,11 @@ pub const RESISTANCE_LOW: I32F32 = I32F32::lit("0.8");
 /// Current-sense offset the observer's dead bands allow for, ADC counts (what
 /// calibration leaves, docs/design.md §9); plus 1.5 counts of resolution.
 pub const CURRENT_OFFSET_TOLERANCE_COUNTS: i32 = 20;
+/// Held in the reference's count, the derivative term is 0 while the filtered gear
+/// velocity is below the observer's dead band shifted right by this (an eighth: 11 mrad/s,
+/// about 4σ of a 2-count current sense's filtered noise; a quarter left a nominal step's
+/// slow end undamped, docs/design.md §11, "Current-sense noise at rest").
+pub const HELD_DAMPING_DEADBAND_SHIFT: u32 = 3;
 /// Fraction of the elastic impact speed (`impact_speed`) the free-play impact limit lets
 /// the gear reach: the observer and the link velocity lag, and the gear is still driven
 /// while the beams take up the impact. Measured on the acceptance grid (250 nominal
