@@ -39,9 +39,9 @@ use model::control::hunt::Hunt;
 use model::control::schedule::{
     CONTACT_CURRENT_TOLERANCE, CONTACT_TORQUE_NM, COULOMB_RAMP_RAD_S,
     CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM,
-    HELD_DAMPING_DEADBAND_SHIFT, IMPACT_SPEED_FRACTION, OBSERVER_RATIO, RESISTANCE_LOW,
-    RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM, REST_ZONE_FREE_PLAYS, SUPPLY_TOLERANCE,
-    TORQUE_FEEDBACK_CORNER,
+    HELD_DAMPING_DEADBAND_SHIFT, IMPACT_SPEED_FRACTION, MOVE_OBSERVER_RATIO, OBSERVER_RATIO,
+    RESISTANCE_LOW, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM, REST_ZONE_FREE_PLAYS,
+    SUPPLY_TOLERANCE, TORQUE_FEEDBACK_CORNER,
 };
 use model::control::{dash, move_drive, Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
@@ -134,6 +134,7 @@ pub struct FloatSchedule {
     contact_per_amp: f32,
     obs_beta: f32,
     obs_beta2: f32,
+    obs_beta_move: f32,
     torque_lp_beta: f32,
     float_load: f32,
     rest_zone: f32,
@@ -227,6 +228,7 @@ impl FloatSchedule {
             contact_per_amp: i32f32(CONTACT_CURRENT_TOLERANCE.to_bits()) * kt,
             obs_beta: 2.0 * w_c / OBSERVER_RATIO as f32 * DT,
             obs_beta2: (w_c / OBSERVER_RATIO as f32) * (w_c / OBSERVER_RATIO as f32) * DT,
+            obs_beta_move: 2.0 * w_c / MOVE_OBSERVER_RATIO as f32 * DT,
             torque_lp_beta: i32f32(TORQUE_FEEDBACK_CORNER.to_bits()) * w_c * DT,
             float_load: i32f32(FLOAT_LOAD_NM.to_bits()) / c * dpv,
             rest_zone: i32f32(REST_ZONE_FREE_PLAYS.to_bits()) * free_play,
@@ -360,6 +362,12 @@ impl FloatTrajectory {
     #[must_use]
     pub const fn is_sine(&self) -> bool {
         matches!(self.mode, Mode::Sine { .. })
+    }
+
+    /// `true` while a raw step runs.
+    #[must_use]
+    pub const fn is_dash(&self) -> bool {
+        matches!(self.mode, Mode::Dash { .. })
     }
 
     /// Holding at `position` (rad).
@@ -918,18 +926,22 @@ impl FloatController {
         // Gear angle: complementary filter (observer above ω_o, link encoder below).
         let anchor = theta_l + e_raw.clamp(-HALF_COUNT, HALF_COUNT) + self.defl_prev;
         let floating = libm::fabsf(self.integ) < s.float_load;
+        let stationary = r.velocity == 0.0 && r.acceleration == 0.0;
         if self.theta_g_valid && floating {
             self.theta_g += (w_gear - self.w_bias) * DT;
             let pull = anchor - self.theta_g;
-            self.theta_g += s.obs_beta * pull;
-            self.w_bias -= s.obs_beta2 * pull;
+            if stationary || self.traj.is_dash() {
+                self.theta_g += s.obs_beta * pull;
+                self.w_bias -= s.obs_beta2 * pull;
+            } else {
+                self.theta_g += s.obs_beta_move * pull;
+            }
         } else {
             self.theta_g = anchor;
             self.theta_g_valid = true;
         }
         let e_g = r.position + self.defl_prev - self.theta_g;
         // Rest without load: the gear stays where it is.
-        let stationary = r.velocity == 0.0 && r.acceleration == 0.0;
         let e_abs = libm::fabsf(e_raw);
         let near = e_abs <= s.rest_zone;
         // Twice the zone after a creep push.

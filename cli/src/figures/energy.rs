@@ -66,8 +66,8 @@
 //! joint to it is 0.04 N·m/rad at 1 Hz and 0.36 N·m/rad at 3 Hz, 40–350 times softer than
 //! the softest setting (14 N·m/rad). The soft end saves what theory predicts: the gear
 //! swings (1 − J_l·ω²/k) of the link's amplitude, 2.5 % less at 3 Hz and L = 8 mm, worth
-//! 1.5 % of the energy. Without load the energy is the rigid body's: 0.98–1.00 times the
-//! estimate at 1 Hz, 0.95–1.03 at 3 Hz (`cli/tests/figures.rs` holds it within 2×).
+//! 1.5 % of the energy. Without load the energy is the rigid body's: 0.99–1.06 times the
+//! estimate at 1 Hz, 0.95–1.01 at 3 Hz (`cli/tests/figures.rs` holds it within 2×).
 
 use fixed::types::I32F32;
 use model::control::{Command, Config, Schedule};

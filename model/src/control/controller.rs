@@ -418,13 +418,23 @@ impl Controller {
         let u_i = q32_to_q16(self.integ);
         let load_abs = u_i.saturating_abs();
         let floating = load_abs < s.float_load_q16;
+        let stationary = r.velocity_q16 == 0 && r.acceleration_q16 == 0;
         if self.theta_g_valid && floating {
             let w = w_gear.saturating_sub(q32_to_q16(self.w_bias));
             self.theta_g = self.theta_g.saturating_add(s.dt.apply_wide(w));
             let pull = q32_to_q16(anchor.saturating_sub(self.theta_g));
-            self.theta_g = self.theta_g.saturating_add(s.obs_beta.apply_wide(pull));
-            // The observer's bias (current offset, resistance error) integrated out.
-            self.w_bias = self.w_bias.saturating_sub(s.obs_beta2.apply_wide(pull));
+            if stationary || self.traj.is_dash() {
+                self.theta_g = self.theta_g.saturating_add(s.obs_beta.apply_wide(pull));
+                // The observer's bias (current offset, resistance error) integrated out.
+                self.w_bias = self.w_bias.saturating_sub(s.obs_beta2.apply_wide(pull));
+            } else {
+                // A min-jerk move or a sine: the pull is the observer's scale error times
+                // the speed; followed at ω_c, the bias held (design §11, "The gear-angle
+                // filter during a move").
+                self.theta_g = self
+                    .theta_g
+                    .saturating_add(s.obs_beta_move.apply_wide(pull));
+            }
         } else {
             self.theta_g = anchor;
             self.theta_g_valid = true;
@@ -438,7 +448,6 @@ impl Controller {
         // gear that chases the link in the free play throws it from wall to wall, a still
         // one only takes energy out of it at each contact. A load that turns up makes the
         // gear creep, the hold integrates it and the integrator leaves the band.
-        let stationary = r.velocity_q16 == 0 && r.acceleration_q16 == 0;
         let e_abs = q32_to_q16(e_q32).saturating_abs();
         let near = e_abs <= s.rest_zone_q16;
         // After a creep push (below) the zone is twice as wide: a link without friction
@@ -805,6 +814,21 @@ mod tests {
             let w = 4e-4 / (4e-4 + sd * sd / 12.0);
             let got = s.deflection_weight().to_num::<f64>();
             assert!((got - w).abs() < 1e-4, "L = {l}: w {got} vs {w}");
+            // The gear-angle filter's pulls: 2·ω_o·dt, ω_o = ω_c/3 at rest and in a raw
+            // step, ω_c in a min-jerk move or a sine; its bias gain (ω_c/3)²·dt.
+            let pull = |g: super::super::gain::Gain| g.value().to_num::<f64>();
+            assert!(
+                (pull(s.obs_beta) - 2.0 * wc / 3.0 * 1e-3).abs() < 1e-6,
+                "L = {l}"
+            );
+            assert!(
+                (pull(s.obs_beta_move) - 2.0 * wc * 1e-3).abs() < 1e-6,
+                "L = {l}"
+            );
+            assert!(
+                (pull(s.obs_beta2) - (wc / 3.0).powi(2) * 1e-3).abs() < 1e-6,
+                "L = {l}"
+            );
         }
     }
 

@@ -77,6 +77,11 @@ pub const TORQUE_FEEDBACK_CORNER: I32F32 = I32F32::lit("2");
 
 /// Crossover of the gear-angle complementary filter: ω_o = ω_c / `OBSERVER_RATIO`.
 pub const OBSERVER_RATIO: i32 = 3;
+/// The same crossover while a min-jerk move or a sine runs, ω_c / `MOVE_OBSERVER_RATIO`,
+/// with the bias integrator held: there the pull is mostly the observer's scale error
+/// (k_e, supply) times the speed, not a bias (docs/design.md §11, "The gear-angle filter
+/// during a move").
+pub const MOVE_OBSERVER_RATIO: i32 = 1;
 
 /// Half-width of the rest hold without load, in free plays φ_b: within it of a stationary
 /// reference an unloaded link's gear is held still (docs/design.md §11, step 8).
@@ -145,11 +150,13 @@ pub struct Schedule {
     pub(crate) contact_per_amp: Gain,
     pub(crate) kd: Gain,
     /// dt = 1 ms (rad/s → rad per tick, applied wide) and the complementary filter's
-    /// pull β = ω_o·dt per tick.
+    /// pull 2·ω_o·dt per tick.
     pub(crate) dt: Gain,
     pub(crate) obs_beta: Gain,
     /// The bias integrator's gain ω_o²·dt (1/s per tick).
     pub(crate) obs_beta2: Gain,
+    /// The pull during a min-jerk move or a sine, 2·ω_c·dt / `MOVE_OBSERVER_RATIO` per tick.
+    pub(crate) obs_beta_move: Gain,
     /// The torque feedback's low-pass, `TORQUE_FEEDBACK_CORNER`·ω_c·dt per tick.
     pub(crate) torque_lp_beta: Gain,
     /// Half-width of the rest hold, `REST_ZONE_FREE_PLAYS`·φ_b, rad Q16, and the duty of
@@ -480,6 +487,10 @@ impl Schedule {
             dt: to_gain(dt)?,
             obs_beta: to_gain(
                 mul(div(w, I64F64::from_num(OBSERVER_RATIO))?, dt)?
+                    .saturating_mul(I64F64::from_num(2)),
+            )?,
+            obs_beta_move: to_gain(
+                mul(div(w, I64F64::from_num(MOVE_OBSERVER_RATIO))?, dt)?
                     .saturating_mul(I64F64::from_num(2)),
             )?,
             rest_zone_q16: to_q16(mul(free_play, wide(REST_ZONE_FREE_PLAYS))?)?,

@@ -241,6 +241,12 @@ impl Trajectory {
         }
     }
 
+    /// `true` while a raw step runs.
+    #[must_use]
+    pub const fn is_dash(&self) -> bool {
+        matches!(self.mode, Mode::Dash(_))
+    }
+
     /// `true` while a move is under way or a sine runs.
     #[must_use]
     pub const fn is_moving(&self) -> bool {
