@@ -9,6 +9,7 @@
 //! → [`ServoState::Disabled`]. Nothing but an explicit clear leaves `Faulted`, and nothing
 //! but an explicit enable turns the motor on.
 
+use crate::control::rest_resistance::RestResistance;
 use crate::control::{
     Command, Config, ControlError, Controller, Impedance, ImpedanceCommand, ImpedanceError,
     Measurements, Output,
@@ -125,6 +126,14 @@ pub struct TickOutput {
     pub new_fault: Option<Fault>,
     /// State after this tick.
     pub state: ServoState,
+}
+
+impl TickOutput {
+    /// Whether the bridge drives the motor after this tick.
+    #[must_use]
+    pub const fn driving(&self) -> bool {
+        matches!(self.bridge, BridgeDemand::Drive(_))
+    }
 }
 
 /// A configuration checked and turned into gains and thresholds ahead of time (the slow
@@ -336,6 +345,38 @@ impl Servo {
         self.controller = controller;
         self.supervisor = supervisor;
         self.impedance = None;
+        Ok(())
+    }
+
+    /// The configuration to prepare when the armature resistance a still, held link under
+    /// load showed (`window`, kept by the caller after each tick: [`RestResistance::tick`])
+    /// differs from the configured one by more than its tolerance: the one in force with
+    /// that resistance, and the supervisor's settings in force. Called before a command
+    /// (docs/design.md §11, "Tracking a warm motor's resistance").
+    #[must_use]
+    pub fn tracked_configuration(
+        &self,
+        window: &RestResistance,
+    ) -> Option<(Config, SupervisorConfig)> {
+        let mut config = *self.controller.config();
+        config.motor.resistance_ohm =
+            window.differs_from(config.motor.supply_v, config.motor.resistance_ohm)?;
+        Some((config, *self.supervisor.config()))
+    }
+
+    /// Takes a configuration prepared ahead of time (its schedule and thresholds, a copy,
+    /// no maths) and keeps the state: an enabled servo holds on with its integrator and
+    /// filters, the sensor history stays, latched faults stay latched; the clutch monitor
+    /// starts its evidence again (new thresholds). For a change of the motor's parameters
+    /// between commands ([`Servo::tracked_configuration`]).
+    ///
+    /// # Errors
+    /// A running sine's feed-forward that does not fit the new schedule.
+    pub fn adopt_prepared(&mut self, prepared: &Prepared) -> Result<(), ServoError> {
+        self.controller
+            .adopt(&prepared.controller)
+            .map_err(ServoError::Control)?;
+        self.supervisor.install_thresholds(&prepared.supervisor);
         Ok(())
     }
 

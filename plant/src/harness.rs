@@ -16,9 +16,10 @@
 
 use model::calibration::correction::SensorCorrection;
 use model::calibration::pipeline::Pipeline;
+use model::control::rest_resistance::RestResistance;
 use model::control::{Command, Config, ControlError, Flags, ImpedanceCommand, Schedule};
 use model::sensors::encoder_delta;
-use model::servo::{BridgeDemand, Servo, ServoError, TickInput};
+use model::servo::{BridgeDemand, Prepared, Servo, ServoError, TickInput};
 use model::supervisor::{Fault, FaultSet, SupervisorConfig};
 use model::Design;
 
@@ -87,6 +88,10 @@ pub struct Scenario {
     /// calibration found them; [`SensorCorrection::NOMINAL`] for the nominal build):
     /// raw readings → [`Pipeline`] → servo, as on the boards.
     pub correction: SensorCorrection,
+    /// Before each command, configure the armature resistance a held link under load
+    /// showed ([`Servo::tracked_configuration`]), as the boards' service does while a
+    /// calibration is in force. Default off.
+    pub track_resistance: bool,
 }
 
 impl Scenario {
@@ -112,6 +117,7 @@ impl Scenario {
             impedance: None,
             gravity_nm: 0.0,
             correction: SensorCorrection::NOMINAL,
+            track_resistance: false,
         }
     }
 }
@@ -573,6 +579,8 @@ where
     );
     let (mut after_fault, mut before_fault) = (0.0f64, 0.0f64);
     let mut move_ms = None;
+    // The still window of a held link (R·i), kept after each tick as the boards' service does.
+    let mut window = RestResistance::NEW;
     for tick in 0..rec.total_ticks() {
         // The scenario's command at `settle_ticks`, then the script's (if any).
         let command = if tick == sc.settle_ticks {
@@ -583,6 +591,14 @@ where
                 .and_then(&mut script)
         };
         if let Some(command) = command {
+            if sc.track_resistance {
+                // A configuration that does not take keeps the one in force.
+                if let Some((config, supervision)) = servo.tracked_configuration(&window) {
+                    if let Ok(p) = Prepared::new(&sc.design, &config, &supervision) {
+                        let _ = servo.adopt_prepared(&p);
+                    }
+                }
+            }
             if tick == sc.settle_ticks {
                 if let Command::Move { duration_ms, .. } = servo.controller().planned(command) {
                     move_ms = Some(duration_ms);
@@ -616,6 +632,7 @@ where
             let measured = fx32(out.control.link_angle.to_bits());
             rec.on_command(true_angle, fx32(target.to_bits()), measured);
         }
+        window.tick(out.driving(), &out.control);
         let (cmd, duty) = (bridge_command(out.bridge), out.bridge.duty());
         readings = plant.step_tick_cmd(cmd);
         let st = plant.state();

@@ -68,6 +68,11 @@ impl ServedActuator {
         })
     }
 
+    /// The simulated actuator, e.g. to warm its motor ([`Plant::set_resistance`]).
+    pub fn plant_mut(&mut self) -> &mut Plant {
+        &mut self.plant
+    }
+
     /// One control period with `lines`; first, if the controller's clutch length
     /// (`schedule`) changed since the last tick, the coupling moves there. Returns the new
     /// readings.

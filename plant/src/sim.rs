@@ -259,6 +259,12 @@ impl Plant {
         self.coupling.reset(self.phi);
     }
 
+    /// The armature's resistance from now on, Ω (the copper warmed or cooled).
+    pub fn set_resistance(&mut self, ohm: f32) {
+        self.cfg.motor.resistance_ohm = ohm;
+        self.d = derive(&self.cfg);
+    }
+
     /// External torque on the link, N·m, held until changed (adds to the configured load).
     /// The closure-free way to apply an arbitrary profile: set it before each tick.
     pub fn set_external_torque(&mut self, torque_nm: f32) {

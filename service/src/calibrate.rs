@@ -288,7 +288,9 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         }
         self.actuator
             .lock(|a| a.pipeline.install(&correction))
-            .map_err(|_| ErrorCode::OutOfRange)
+            .map_err(|_| ErrorCode::OutOfRange)?;
+        self.service.tracks_resistance = true;
+        Ok(())
     }
 
     /// At boot and on `load`: the stored calibration in force, if any (one the controller

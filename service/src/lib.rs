@@ -24,6 +24,7 @@
 #![deny(missing_docs)]
 
 use model::calibration::pipeline::Pipeline;
+use model::control::rest_resistance::RestResistance;
 use model::control::{ClutchSetting, Command, Config, PidGains};
 use model::sensors::POT_COUNT_Q32;
 use model::servo::{Prepared, Servo, ServoError, ServoState, TickInput, TickOutput};
@@ -240,6 +241,8 @@ pub struct Actuator {
     link_velocity: i64,
     /// Torque estimate at the last tick, I32F32 N·m (the Dynamixel Present Load).
     torque: i64,
+    /// The still window of a held link under load (its R·i), kept after each tick.
+    rest_resistance: RestResistance,
 }
 
 impl Actuator {
@@ -256,6 +259,7 @@ impl Actuator {
             link_angle: 0,
             link_velocity: 0,
             torque: 0,
+            rest_resistance: RestResistance::NEW,
         }
     }
 
@@ -289,6 +293,7 @@ impl Actuator {
         self.link_angle = out.control.link_angle.to_bits();
         self.link_velocity = out.control.link_velocity.to_bits();
         self.torque = out.control.torque_estimate.to_bits();
+        self.rest_resistance.tick(out.driving(), &out.control);
         let seq = self.telemetry.due()?;
         Some((seq, self.sample(input, out)))
     }
@@ -471,6 +476,9 @@ pub struct Service {
     /// The longest clutch, µm, the calibration in force leaves possible (`None`: no
     /// calibration, or one that could not bound it).
     calibrated_longest_um: Option<u32>,
+    /// A calibration is in force (its current offset known to a fraction of a count): the
+    /// motor's resistance is tracked between commands ([`Servo::tracked_configuration`]).
+    tracks_resistance: bool,
 }
 
 impl Service {
@@ -484,6 +492,7 @@ impl Service {
             supervision,
             settings: store::Settings::new(config, supervision),
             calibrated_longest_um: None,
+            tracks_resistance: false,
         }
     }
 
@@ -548,6 +557,30 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         Ok(length_um)
     }
 
+    /// Configures the armature resistance a held link under load showed when it
+    /// differs from the one in force (a motor that warmed since its calibration,
+    /// docs/design.md §11, "Tracking a warm motor's resistance"): prepared unlocked (the
+    /// slow maths), adopted locked with the servo's state kept. A refused configuration
+    /// keeps the one in force. `plant::harness` does the same before its commands.
+    fn track_resistance(&mut self) {
+        let Some((config, supervision)) = self
+            .actuator
+            .lock(|a| a.servo.tracked_configuration(&a.rest_resistance))
+        else {
+            return;
+        };
+        let Ok(prepared) = Prepared::new(&self.service.design, &config, &supervision) else {
+            return;
+        };
+        if self
+            .actuator
+            .lock(|a| a.servo.adopt_prepared(&prepared))
+            .is_ok()
+        {
+            self.service.config.motor.resistance_ohm = config.motor.resistance_ohm;
+        }
+    }
+
     /// Whether `lo..=hi` (I32F32 rad) lies inside the position window in force.
     fn within_window(&self, lo: i64, hi: i64) -> bool {
         let s = &self.service.supervision;
@@ -566,8 +599,12 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         }
     }
 
-    /// Gives the servo a motion command; only while enabled.
+    /// Gives the servo a motion command; only while enabled. With a calibration in force,
+    /// first the resistance a held link under load showed ([`Self::track_resistance`]).
     fn motion(&mut self, cmd: Command) -> Result<(), ErrorCode> {
+        if self.service.tracks_resistance {
+            self.track_resistance();
+        }
         self.actuator.lock(|a| {
             if a.servo.state() != ServoState::Enabled {
                 return Err(ErrorCode::NotAllowed);

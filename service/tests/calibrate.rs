@@ -115,6 +115,64 @@ fn a_calibration_runs_from_disabled_and_its_result_drives_the_controller() {
 }
 
 #[test]
+fn a_motor_warmer_than_at_its_calibration_has_its_resistance_tracked_at_a_command() {
+    let mut b = Bench::new(0.0);
+    assert_eq!(b.ask(Request::Calibrate { start: true }), Reply::Ok);
+    let mut ticks = 0;
+    while let CalibrationProgress::Running { .. } = progress(&mut b) {
+        b.step();
+        ticks += 1;
+        assert!(ticks < 30_000, "still running after {ticks} ticks");
+    }
+    assert_eq!(progress(&mut b), CalibrationProgress::Done);
+    let calibrated = b.service.config().motor.resistance_ohm;
+    for _ in 0..model::calibration::correction::BOOT_TICKS {
+        b.step();
+    }
+    assert_eq!(b.ask(Request::Enable), Reply::Ok);
+    // A 0.25 N·m load held at the calibration's temperature: a command changes nothing.
+    b.plant().set_external_torque(0.25);
+    for _ in 0..1000 {
+        b.step();
+    }
+    let mv = |target_urad| Request::Move {
+        target_urad,
+        duration_ms: 300,
+    };
+    assert_eq!(b.ask(mv(100_000)), Reply::Ok);
+    assert_eq!(b.service.config().motor.resistance_ohm, calibrated);
+    for _ in 0..1500 {
+        b.step();
+    }
+    // The copper warms by 77 K (×1.3): held again, the next command configures what the
+    // held link showed.
+    let r = b.plant().config().motor.resistance_ohm;
+    b.plant().set_resistance(1.3 * r);
+    for _ in 0..1000 {
+        b.step();
+    }
+    assert_eq!(b.ask(mv(0)), Reply::Ok);
+    let tracked = b.service.config().motor.resistance_ohm;
+    let ratio = tracked.to_num::<f64>() / calibrated.to_num::<f64>();
+    assert!(
+        (ratio - 1.3).abs() < 0.05,
+        "R ×{ratio} since the calibration"
+    );
+    let in_force = b
+        .actuator
+        .0
+        .servo
+        .controller()
+        .config()
+        .motor
+        .resistance_ohm;
+    assert_eq!(in_force, tracked);
+    for _ in 0..1500 {
+        b.step();
+    }
+}
+
+#[test]
 fn the_host_stops_a_calibration_and_the_motor_goes_off() {
     let mut b = Bench::new(0.0);
     assert_eq!(b.ask(Request::Calibrate { start: true }), Reply::Ok);

@@ -215,6 +215,21 @@ impl Controller {
         Ok(())
     }
 
+    /// Takes `other`'s configuration (its schedule, feed-forward and parameters, all
+    /// derived already) and keeps this controller's state: the integrator, filters and
+    /// trajectory go on. The same as [`Controller::configure`] with `other`'s
+    /// configuration, without its maths.
+    ///
+    /// # Errors
+    /// As [`Controller::configure`]: a running sine's feed-forward that does not fit.
+    pub fn adopt(&mut self, other: &Controller) -> Result<(), ControlError> {
+        self.ff = self.ff.reconfigure(&other.sched, &other.config)?;
+        self.sched = other.sched;
+        self.config = other.config;
+        self.defl_valid = false;
+        Ok(())
+    }
+
     /// The configuration in use.
     #[must_use]
     pub const fn config(&self) -> &Config {

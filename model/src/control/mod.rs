@@ -47,6 +47,7 @@ pub mod hunt;
 pub mod impedance;
 pub mod move_drive;
 pub mod move_duration;
+pub mod rest_resistance;
 pub mod schedule;
 pub mod sine;
 pub mod sine_feedforward;

@@ -43,6 +43,12 @@ impl Bench {
         }
     }
 
+    /// The simulated actuator (to warm its motor or hang a load on it).
+    #[allow(dead_code)] // not every test binary that shares this module uses it
+    pub fn plant(&mut self) -> &mut plant::Plant {
+        self.world.plant_mut()
+    }
+
     /// One request, answered.
     pub fn ask(&mut self, req: Request) -> Reply {
         self.seq += 1;
