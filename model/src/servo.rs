@@ -54,6 +54,12 @@ impl BridgeDemand {
             BridgeDemand::Off | BridgeDemand::Brake => 0,
         }
     }
+
+    /// Whether the bridge drives the motor (neither off nor braking).
+    #[must_use]
+    pub const fn drives(self) -> bool {
+        matches!(self, BridgeDemand::Drive(_))
+    }
 }
 
 /// Whether the servo brakes (rather than coasts) once `faults` are latched: braking
@@ -126,14 +132,6 @@ pub struct TickOutput {
     pub new_fault: Option<Fault>,
     /// State after this tick.
     pub state: ServoState,
-}
-
-impl TickOutput {
-    /// Whether the bridge drives the motor after this tick.
-    #[must_use]
-    pub const fn driving(&self) -> bool {
-        matches!(self.bridge, BridgeDemand::Drive(_))
-    }
 }
 
 /// A configuration checked and turned into gains and thresholds ahead of time (the slow
@@ -497,7 +495,7 @@ impl Servo {
             BridgeDemand::Off
         };
         // Braking applies 0 V; off, the observer is told 0 as well (its best guess).
-        self.was_off = !matches!(bridge, BridgeDemand::Drive(_));
+        self.was_off = !bridge.drives();
         TickOutput {
             tick: self.tick,
             bridge,

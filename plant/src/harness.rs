@@ -88,7 +88,7 @@ pub struct Scenario {
     /// calibration found them; [`SensorCorrection::NOMINAL`] for the nominal build):
     /// raw readings → [`Pipeline`] → servo, as on the boards.
     pub correction: SensorCorrection,
-    /// Before each command, configure the armature resistance a held link under load
+    /// Before each motion command, configure the armature resistance a held link under load
     /// showed ([`Servo::tracked_configuration`]), as the boards' service does while a
     /// calibration is in force. Default off.
     pub track_resistance: bool,
@@ -591,8 +591,10 @@ where
                 .and_then(&mut script)
         };
         if let Some(command) = command {
-            if sc.track_resistance {
-                // A configuration that does not take keeps the one in force.
+            // The service tracks before a move, a step or a sine (not a hold, not an
+            // impedance command); a configuration that does not take keeps the one in force.
+            let impedance = tick == sc.settle_ticks && sc.impedance.is_some();
+            if sc.track_resistance && !impedance && !matches!(command, Command::Hold) {
                 if let Some((config, supervision)) = servo.tracked_configuration(&window) {
                     if let Ok(p) = Prepared::new(&sc.design, &config, &supervision) {
                         let _ = servo.adopt_prepared(&p);
@@ -632,7 +634,7 @@ where
             let measured = fx32(out.control.link_angle.to_bits());
             rec.on_command(true_angle, fx32(target.to_bits()), measured);
         }
-        window.tick(out.driving(), &out.control);
+        window.tick(out.bridge.drives(), &out.control);
         let (cmd, duty) = (bridge_command(out.bridge), out.bridge.duty());
         readings = plant.step_tick_cmd(cmd);
         let st = plant.state();

@@ -293,7 +293,7 @@ impl Actuator {
         self.link_angle = out.control.link_angle.to_bits();
         self.link_velocity = out.control.link_velocity.to_bits();
         self.torque = out.control.torque_estimate.to_bits();
-        self.rest_resistance.tick(out.driving(), &out.control);
+        self.rest_resistance.tick(out.bridge.drives(), &out.control);
         let seq = self.telemetry.due()?;
         Some((seq, self.sample(input, out)))
     }
@@ -561,7 +561,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
     /// differs from the one in force (a motor that warmed since its calibration,
     /// docs/design.md §11, "Tracking a warm motor's resistance"): prepared unlocked (the
     /// slow maths), adopted locked with the servo's state kept. A refused configuration
-    /// keeps the one in force. `plant::harness` does the same before its commands.
+    /// keeps the one in force. `plant::harness` does the same before its motion commands.
     fn track_resistance(&mut self) {
         let Some((config, supervision)) = self
             .actuator

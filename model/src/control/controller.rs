@@ -208,11 +208,7 @@ impl Controller {
     /// does not fit its format.
     pub fn configure(&mut self, config: &Config) -> Result<(), ControlError> {
         let sched = Schedule::new(&self.design, config)?;
-        self.ff = self.ff.reconfigure(&sched, config)?;
-        self.sched = sched;
-        self.config = *config;
-        self.defl_valid = false;
-        Ok(())
+        self.install(sched, config)
     }
 
     /// Takes `other`'s configuration (its schedule, feed-forward and parameters, all
@@ -223,9 +219,14 @@ impl Controller {
     /// # Errors
     /// As [`Controller::configure`]: a running sine's feed-forward that does not fit.
     pub fn adopt(&mut self, other: &Controller) -> Result<(), ControlError> {
-        self.ff = self.ff.reconfigure(&other.sched, &other.config)?;
-        self.sched = other.sched;
-        self.config = other.config;
+        self.install(other.sched, &other.config)
+    }
+
+    /// Puts a derived schedule and its configuration in force, the state kept.
+    fn install(&mut self, sched: Schedule, config: &Config) -> Result<(), ControlError> {
+        self.ff = self.ff.reconfigure(&sched, config)?;
+        self.sched = sched;
+        self.config = *config;
         self.defl_valid = false;
         Ok(())
     }

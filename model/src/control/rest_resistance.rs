@@ -63,8 +63,7 @@ impl RestResistance {
     /// goes on while the reference stays where it was and the link within a count of
     /// where the window began (a held link may toggle between two counts), else it starts
     /// again here.
-    #[inline]
-    pub fn update(&mut self, out: &Output) {
+    fn update(&mut self, out: &Output) {
         // Both angles are below 2⁵⁵ in Q32: the difference cannot overflow.
         let moved = (out.link_angle.to_bits() - self.link.to_bits()).unsigned_abs();
         if out.reference != self.reference || moved > ENCODER_COUNT_Q32.unsigned_abs() {
@@ -75,26 +74,21 @@ impl RestResistance {
             };
         } else if self.ticks < MAX_TICKS {
             self.duty_sum += i64::from(out.duty);
-            // |current| < 2¹⁵ A in Q32: its Q16 part fits an i32.
+            // |current| < 2¹⁵ A, below 2³¹ in Q16: the sum of `MAX_TICKS` stays below 2⁵¹.
             self.current_sum_q16 += out.current.to_bits() >> 16;
             self.ticks += 1;
         }
     }
 
     /// After each tick, outside the control step (the firmware's publishing step, the
-    /// host harness's loop): [`RestResistance::update`] while the motor is driven (`out`,
-    /// the controller's output of that tick), else the window starts again.
+    /// host harness's loop): the window goes on while the motor is driven (`out`, the
+    /// controller's output of that tick), else it starts again.
     pub fn tick(&mut self, driving: bool, out: &Output) {
         if driving {
             self.update(out);
         } else {
-            self.restart();
+            *self = RestResistance::NEW;
         }
-    }
-
-    /// Starts the window again (the motor stopped, or a command moved the reference).
-    pub fn restart(&mut self) {
-        *self = RestResistance::NEW;
     }
 
     /// R_eff, Ω, of a window of at least [`WINDOW_TICKS`] whose mean current is at least
@@ -121,7 +115,7 @@ impl RestResistance {
     #[must_use]
     pub fn differs_from(&self, supply_v: I32F32, configured: I32F32) -> Option<I32F32> {
         let r = self.estimate(supply_v)?;
-        let diff = i128::from(r.to_bits() - configured.to_bits()).abs() * 1000;
+        let diff = (i128::from(r.to_bits()) - i128::from(configured.to_bits())).abs() * 1000;
         (diff > i128::from(TOLERANCE_PERMILLE) * i128::from(configured.to_bits())).then_some(r)
     }
 }
@@ -151,17 +145,17 @@ mod tests {
         let mut w = RestResistance::NEW;
         // 0.25 A through 9.6 Ω at 12 V: 200 ‰.
         for _ in 0..WINDOW_TICKS {
-            w.update(&out(200, 0.25, 7));
+            w.tick(true, &out(200, 0.25, 7));
         }
         // The first tick opened the window: one tick short.
         assert_eq!(w.estimate(v_s), None);
-        w.update(&out(200, 0.25, 7));
+        w.tick(true, &out(200, 0.25, 7));
         let r = w.estimate(v_s).unwrap().to_num::<f64>();
         assert!((r - 9.6).abs() < 1e-3, "{r}");
         // Negative load, negative duty: the same.
         let mut n = RestResistance::NEW;
         for _ in 0..=WINDOW_TICKS {
-            n.update(&out(-200, -0.25, 7));
+            n.tick(true, &out(-200, -0.25, 7));
         }
         assert!((n.estimate(v_s).unwrap().to_num::<f64>() - 9.6).abs() < 1e-3);
         // 9.6 against 8 Ω configured is 20 % off; against 9.4 Ω, 2 %.
@@ -175,31 +169,34 @@ mod tests {
         let mut w = RestResistance::NEW;
         for k in 0..2 * WINDOW_TICKS {
             // The link moves a count every 100 ticks: the window never grows long.
-            w.update(&out(200, 0.25, i64::from(k / 100) * ENCODER_COUNT_Q32));
+            w.tick(
+                true,
+                &out(200, 0.25, i64::from(k / 100) * ENCODER_COUNT_Q32),
+            );
         }
         assert_eq!(w.estimate(v_s), None);
         // A link toggling between two counts is still.
         for k in 0..=WINDOW_TICKS {
-            w.update(&out(200, 0.25, i64::from(k % 2) * ENCODER_COUNT_Q32));
+            w.tick(true, &out(200, 0.25, i64::from(k % 2) * ENCODER_COUNT_Q32));
         }
         assert!(w.estimate(v_s).is_some());
-        w.restart();
+        w.tick(false, &out(200, 0.25, 0));
         assert_eq!(w.estimate(v_s), None);
         let mut small = RestResistance::NEW;
         for _ in 0..=WINDOW_TICKS {
-            small.update(&out(24, 0.03, 0));
+            small.tick(true, &out(24, 0.03, 0));
         }
         assert_eq!(small.estimate(v_s), None);
         let mut opposite = RestResistance::NEW;
         for _ in 0..=WINDOW_TICKS {
-            opposite.update(&out(200, -0.25, 0));
+            opposite.tick(true, &out(200, -0.25, 0));
         }
         assert_eq!(opposite.estimate(v_s), None);
         let mut w = RestResistance::NEW;
         for _ in 0..=WINDOW_TICKS {
-            w.update(&out(200, 0.25, 0));
+            w.tick(true, &out(200, 0.25, 0));
         }
-        w.restart();
+        w.tick(false, &out(200, 0.25, 0));
         assert_eq!(w.estimate(v_s), None);
     }
 }

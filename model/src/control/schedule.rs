@@ -361,6 +361,11 @@ fn current_limit(
     })
 }
 
+/// The gear-angle filter's pull per tick, 2·ω_o·dt with ω_o = ω_c / `ratio`.
+fn observer_pull(w: I64F64, ratio: i32, dt: I64F64) -> Result<Gain, ControlError> {
+    to_gain(mul(div(w, I64F64::from_num(ratio))?, dt)?.saturating_mul(I64F64::from_num(2)))
+}
+
 /// The gear's speed relative to the link at which crossing the free play and hitting the
 /// link gives an impact torque of τ_lim: two masses closing at v on a spring k meet with
 /// a peak torque v·√(k·J_eff), J_eff = J_g·J_l/(J_g + J_l), so v = τ_lim/(J_eff·ω_eff),
@@ -485,14 +490,8 @@ impl Schedule {
             contact_per_amp: to_gain(mul(wide(CONTACT_CURRENT_TOLERANCE), kt)?)?,
             kd: to_gain(wide(gains.kd))?,
             dt: to_gain(dt)?,
-            obs_beta: to_gain(
-                mul(div(w, I64F64::from_num(OBSERVER_RATIO))?, dt)?
-                    .saturating_mul(I64F64::from_num(2)),
-            )?,
-            obs_beta_move: to_gain(
-                mul(div(w, I64F64::from_num(MOVE_OBSERVER_RATIO))?, dt)?
-                    .saturating_mul(I64F64::from_num(2)),
-            )?,
+            obs_beta: observer_pull(w, OBSERVER_RATIO, dt)?,
+            obs_beta_move: observer_pull(w, MOVE_OBSERVER_RATIO, dt)?,
             rest_zone_q16: to_q16(mul(free_play, wide(REST_ZONE_FREE_PLAYS))?)?,
             rest_torque_q16: to_q16(wide(REST_TORQUE_NM))?,
             rest_load_q16: to_q16(mul(
