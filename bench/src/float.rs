@@ -40,8 +40,8 @@ use model::control::schedule::{
     CONTACT_CURRENT_TOLERANCE, CONTACT_TORQUE_NM, COULOMB_RAMP_RAD_S,
     CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM,
     HELD_DAMPING_DEADBAND_SHIFT, IMPACT_SPEED_FRACTION, MOVE_OBSERVER_RATIO, OBSERVER_RATIO,
-    RESISTANCE_LOW, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM, REST_ZONE_FREE_PLAYS,
-    SUPPLY_TOLERANCE, TORQUE_FEEDBACK_CORNER,
+    PRESSED_LOAD_NM, RESISTANCE_LOW, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM,
+    REST_ZONE_FREE_PLAYS, SUPPLY_TOLERANCE, TORQUE_FEEDBACK_CORNER,
 };
 use model::control::{dash, move_drive, Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
@@ -139,6 +139,7 @@ pub struct FloatSchedule {
     float_load: f32,
     rest_zone: f32,
     rest_load: f32,
+    pressed_load: f32,
     rest_torque: f32,
     kd: f32,
     alpha: f32,
@@ -233,6 +234,7 @@ impl FloatSchedule {
             float_load: i32f32(FLOAT_LOAD_NM.to_bits()) / c * dpv,
             rest_zone: i32f32(REST_ZONE_FREE_PLAYS.to_bits()) * free_play,
             rest_load: i32f32(REST_LOAD_NM.to_bits()) / c * dpv,
+            pressed_load: i32f32(PRESSED_LOAD_NM.to_bits()) / c * dpv,
             rest_torque: i32f32(REST_TORQUE_NM.to_bits()),
             kd,
             alpha: DT / (tau_f + DT),
@@ -923,10 +925,20 @@ impl FloatController {
         let e_raw = r.position - theta_l;
         let in_count = (-HALF_COUNT..HALF_COUNT).contains(&e_raw);
         let e = if in_count { 0.0 } else { e_raw };
-        // Gear angle: complementary filter (observer above ω_o, link encoder below).
-        let anchor = theta_l + e_raw.clamp(-HALF_COUNT, HALF_COUNT) + self.defl_prev;
-        let floating = libm::fabsf(self.integ) < s.float_load;
         let stationary = r.velocity == 0.0 && r.acceleration == 0.0;
+        // Gear angle: complementary filter (observer above ω_o, link encoder below); a
+        // link held on a wall at a stationary reference at its count's centre.
+        let pressed = stationary
+            && libm::fabsf(self.integ) >= s.pressed_load
+            && libm::fabsf(self.w_link) < s.w_deadband
+            && !self.hunt.hunting();
+        let nearest = if in_count || !pressed {
+            e_raw.clamp(-HALF_COUNT, HALF_COUNT)
+        } else {
+            0.0
+        };
+        let anchor = theta_l + nearest + self.defl_prev;
+        let floating = libm::fabsf(self.integ) < s.float_load;
         if self.theta_g_valid && floating {
             self.theta_g += (w_gear - self.w_bias) * DT;
             let pull = anchor - self.theta_g;

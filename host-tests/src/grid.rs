@@ -252,6 +252,37 @@ pub fn unloaded_links_with_bearing_friction() -> [Case; 3] {
     ]
 }
 
+/// Three nominal grid cases under a light load (0.02…0.04 N·m) that the loop left held
+/// one count off their target, 1.34…1.53 counts, before a still link pressed on a wall was
+/// placed at its count's centre (docs/design.md §11, "A light load one count off"): seed
+/// 103 #85, seed 108 #16 and seed 120 #139, written out in full.
+#[must_use]
+pub fn light_loads_one_count_off() -> [Case; 3] {
+    [
+        Case::written(
+            5819,
+            4.194_923_200_234_921e-3,
+            0.044_335_84,
+            Motion::Move(0.456_148_742_744_515_45, 233),
+            "",
+        ),
+        Case::written(
+            7677,
+            1.269_557_889_519_648_4e-3,
+            -0.023_439_897,
+            Motion::Step(-0.201_848_685_504_981_33),
+            "",
+        ),
+        Case::written(
+            5410,
+            4.132_778_752_206_335_6e-3,
+            -0.039_469_313,
+            Motion::Move(-0.450_182_181_679_856_2, 268),
+            "",
+        ),
+    ]
+}
+
 /// Three nominal grid cases with a current sense of 2 counts RMS noise
 /// (`VSA_GRID_PLANT=current-noise=2`), held under a load after a raw step, whose held loop
 /// turned the noise into duty before it was kept out (docs/design.md §11, "Current-sense

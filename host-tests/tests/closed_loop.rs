@@ -226,6 +226,15 @@ fn an_unloaded_link_with_bearing_friction_is_pushed_to_its_target() {
     assert_rest_without_fault(&grid::unloaded_links_with_bearing_friction());
 }
 
+/// A still link that a light load holds on a wall one count off its target is placed at
+/// its count's centre, not at the edge nearest the target, and the loop brings it in
+/// (docs/design.md §11, "A light load one count off"). The three nominal grid cases of
+/// `grid::light_loads_one_count_off`.
+#[test]
+fn a_light_load_held_one_count_off_is_brought_in() {
+    assert_rest_without_fault(&grid::light_loads_one_count_off());
+}
+
 /// A raw step of a link about twice as heavy as configured braked at the deceleration
 /// planned for the configured one and hit the braking wall of the free play. The profile
 /// now brakes for the drive its acceleration took (docs/design.md §11, "Braking for the

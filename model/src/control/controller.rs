@@ -415,11 +415,25 @@ impl Controller {
         let in_count =
             (e_q32.wrapping_add(ENCODER_HALF_COUNT_Q32) as u64) < 2 * ENCODER_HALF_COUNT_Q32 as u64;
 
+        // The integrator's duty (‰ Q16), once: it is updated at the end of the tick.
+        let u_i = q32_to_q16(self.integ);
+        let load_abs = u_i.saturating_abs();
+        let stationary = r.velocity_q16 == 0 && r.acceleration_q16 == 0;
+
         // --- gear angle: complementary filter of the observer and the link encoder ---
         // The link at the point of its measured count nearest the reference (the encoder
-        // cannot tell better), plus the deflection the coupling needs.
+        // cannot tell better), plus the deflection the coupling needs. A still link that a
+        // load holds on a wall (the integrator holds more than `PRESSED_LOAD_NM`) at a
+        // stationary reference: its count's centre, so that the loop is not content with
+        // the neighbouring count (design §11, "A light load one count off").
         let nearest = if in_count {
             e_q32
+        } else if stationary
+            && load_abs >= s.pressed_load_q16
+            && self.w_link.saturating_abs() < s.w_deadband_q16
+            && !self.hunt.hunting()
+        {
+            0
         } else if e_q32 < 0 {
             -ENCODER_HALF_COUNT_Q32
         } else {
@@ -430,11 +444,7 @@ impl Controller {
         // Under load the beams stay in contact on one side and the link error is the
         // better signal (an observer scale error adds up over a move); the gear loop is for
         // a link that floats in the free play.
-        // The integrator's duty (‰ Q16), once: it is updated at the end of the tick.
-        let u_i = q32_to_q16(self.integ);
-        let load_abs = u_i.saturating_abs();
         let floating = load_abs < s.float_load_q16;
-        let stationary = r.velocity_q16 == 0 && r.acceleration_q16 == 0;
         if self.theta_g_valid && floating {
             let w = w_gear.saturating_sub(q32_to_q16(self.w_bias));
             self.theta_g = self.theta_g.saturating_add(s.dt.apply_wide(w));

@@ -96,6 +96,15 @@ pub const REST_LOAD_NM: I32F32 = I32F32::lit("0.0125");
 /// link (τ̂ up to ≈ 0.15 N·m on the grid).
 pub const REST_TORQUE_NM: I32F32 = I32F32::lit("0.2");
 
+/// Above this load (the torque the integrator holds), N·m, a still link off a stationary
+/// reference's count is taken to be pressed on a wall and where its count's centre says,
+/// not at the count's edge nearest the reference (docs/design.md §11, "A light load one
+/// count off"). Twice `REST_LOAD_NM`: measured on the grid (seeds 101…130), at
+/// `REST_LOAD_NM` the off-nominal links without load whose integrator holds the
+/// observer's bias were taken as pressed (rest duty span violations 257 → 279), at
+/// 0.0375 N·m fewer light loads came within a count.
+pub const PRESSED_LOAD_NM: I32F32 = I32F32::lit("0.025");
+
 /// Below this load (the torque the integrator holds), N·m, the link is taken to float in
 /// the free play and the position loop acts on the gear estimate.
 pub const FLOAT_LOAD_NM: I32F32 = I32F32::lit("0.05");
@@ -165,6 +174,8 @@ pub struct Schedule {
     pub(crate) rest_load_q16: i32,
     /// `REST_TORQUE_NM`, N·m Q16.
     pub(crate) rest_torque_q16: i32,
+    /// Duty of `PRESSED_LOAD_NM`, ‰ Q16.
+    pub(crate) pressed_load_q16: i32,
     /// Duty of `FLOAT_LOAD_NM`, ‰ Q16.
     pub(crate) float_load_q16: i32,
     /// Derivative filter coefficient α = dt/(τ_f + dt), Q16.
@@ -496,6 +507,10 @@ impl Schedule {
             rest_torque_q16: to_q16(wide(REST_TORQUE_NM))?,
             rest_load_q16: to_q16(mul(
                 div(wide(REST_LOAD_NM), p.torque_per_volt)?,
+                duty_per_volt,
+            )?)?,
+            pressed_load_q16: to_q16(mul(
+                div(wide(PRESSED_LOAD_NM), p.torque_per_volt)?,
                 duty_per_volt,
             )?)?,
             float_load_q16: to_q16(mul(
