@@ -71,6 +71,12 @@ pub struct CalibrationReport {
     pub progress: CalibrationProgress,
     /// The calibration in force (the last successful run's, or the stored one), if any.
     pub calibration: Option<Calibration>,
+    /// The armature resistance the controller works with instead of the calibration's, ‰
+    /// of the calibration's: what a held link under load showed since (the motor warmed or
+    /// cooled, docs/design.md §11, "Tracking a warm motor's resistance"); `None` while the
+    /// calibration's is in force. A ratio, not mΩ, so that the report fits the largest
+    /// reply. Not stored: the next boot starts from the calibration's.
+    pub tracked_resistance_permille: Option<u16>,
 }
 
 /// What the handler asks of the device for the calibration requests (part of

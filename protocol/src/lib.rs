@@ -136,7 +136,7 @@ pub const MAX_REQUEST_BODY: usize = 1 + 3 * 10;
 /// state 1, faults 3, first fault 1 + (code 1 + value 5 + tick 5), limits 1, clutch 5,
 /// stiffness 5, clutch tolerance 3, tick 5, moving 1, telemetry rate 3, telemetry dropped
 /// 5, protocol errors 5, differs from stored 1, calibration progress 3 (the calibration
-/// report is 1 + 48).
+/// report is 1 + 52).
 pub const MAX_REPLY_BODY: usize = 1 + 53;
 
 /// Largest postcard encoding of a telemetry reply body: tag (1) + 35 (see

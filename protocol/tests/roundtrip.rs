@@ -283,6 +283,7 @@ fn largest_replies() -> Vec<Reply> {
                 clutch_length_um: Some(u32::MAX),
                 stiffness_uncertainty_permille: u16::MAX,
             }),
+            tracked_resistance_permille: Some(u16::MAX),
         }),
     ]
 }

@@ -256,6 +256,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         CalibrationReport {
             progress: self.actuator.lock(|a| a.calibration.progress),
             calibration: self.service.calibration().map(|c| c.wire),
+            tracked_resistance_permille: self.service.tracked_resistance_permille,
         }
     }
 
@@ -290,6 +291,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
             .lock(|a| a.pipeline.install(&correction))
             .map_err(|_| ErrorCode::OutOfRange)?;
         self.service.tracks_resistance = true;
+        self.service.tracked_resistance_permille = None;
         Ok(())
     }
 

@@ -479,6 +479,9 @@ pub struct Service {
     /// A calibration is in force (its current offset known to a fraction of a count): the
     /// motor's resistance is tracked between commands ([`Servo::tracked_configuration`]).
     tracks_resistance: bool,
+    /// The resistance a held link showed, ‰ of the calibration's, in force instead of it
+    /// (`None`: the calibration's, or no calibration).
+    tracked_resistance_permille: Option<u16>,
 }
 
 impl Service {
@@ -493,6 +496,7 @@ impl Service {
             settings: store::Settings::new(config, supervision),
             calibrated_longest_um: None,
             tracks_resistance: false,
+            tracked_resistance_permille: None,
         }
     }
 
@@ -578,6 +582,11 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
             .is_ok()
         {
             self.service.config.motor.resistance_ohm = config.motor.resistance_ohm;
+            let tracked = i64::from(q32_to_milli(config.motor.resistance_ohm.to_bits()));
+            self.service.tracked_resistance_permille = self.service.calibration().map(|c| {
+                let calibrated = i64::from(c.wire.resistance_mohm).max(1);
+                u16::try_from(tracked.saturating_mul(1000) / calibrated).unwrap_or(u16::MAX)
+            });
         }
     }
 

@@ -375,6 +375,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         // Until the stored calibration (if any) is applied below, nothing confirms the clutch.
         service.calibrated_longest_um = None;
         service.tracks_resistance = false;
+        service.tracked_resistance_permille = None;
         let wanted = match boot.set.config {
             Some(c) => model_config(&c, &defaults),
             None => Ok(defaults),
@@ -401,6 +402,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         let defaults = settings.defaults;
         self.service.calibrated_longest_um = None;
         self.service.tracks_resistance = false;
+        self.service.tracked_resistance_permille = None;
         self.reconfigure(defaults.0, defaults.1).map(|_| ())
     }
 

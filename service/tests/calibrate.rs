@@ -141,6 +141,7 @@ fn a_motor_warmer_than_at_its_calibration_has_its_resistance_tracked_at_a_comman
     };
     assert_eq!(b.ask(mv(100_000)), Reply::Ok);
     assert_eq!(b.service.config().motor.resistance_ohm, calibrated);
+    assert_eq!(report(&mut b).tracked_resistance_permille, None);
     for _ in 0..1500 {
         b.step();
     }
@@ -167,6 +168,14 @@ fn a_motor_warmer_than_at_its_calibration_has_its_resistance_tracked_at_a_comman
         .motor
         .resistance_ohm;
     assert_eq!(in_force, tracked);
+    // … and the calibration report gives it, ‰ of the calibration's.
+    let reported = report(&mut b)
+        .tracked_resistance_permille
+        .expect("tracked R reported");
+    assert!(
+        (f64::from(reported) - 1000.0 * ratio).abs() <= 1.0,
+        "the report says {reported} ‰, the controller has ×{ratio}"
+    );
     for _ in 0..1500 {
         b.step();
     }

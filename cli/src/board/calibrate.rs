@@ -93,10 +93,16 @@ pub fn run(s: &mut Session, a: &CalibrateArgs) -> CliResult<()> {
     // The board's word that the sequence's drive has ended: the open-loop duty it
     // applied in its last tick (not asked for with `--show`).
     let duty = if a.show { None } else { Some(applied_duty(s)?) };
+    // The resistance in force, mΩ, from the calibration's and the tracked ratio.
+    let tracked = cal.as_ref().and_then(|c| {
+        report.tracked_resistance_permille.map(|p| {
+            u32::try_from(u64::from(c.resistance_mohm) * u64::from(p) / 1000).unwrap_or(u32::MAX)
+        })
+    });
     out(&if a.json {
-        json(cal.as_ref(), failure, duty)
+        json(cal.as_ref(), tracked, failure, duty)
     } else {
-        text(cal.as_ref(), failure, duty)
+        text(cal.as_ref(), tracked, failure, duty)
     });
     match failure {
         Some((name, message)) => {
@@ -210,8 +216,14 @@ fn opt(v: Option<f64>) -> serde_json::Value {
     v.map_or(serde_json::Value::Null, serde_json::Value::from)
 }
 
-/// The JSON object (one line).
-fn json(cal: Option<&Calibration>, failure: Option<(&str, &str)>, duty: Option<i16>) -> String {
+/// The JSON object (one line); `tracked` the resistance in force instead of the
+/// calibration's, mΩ.
+fn json(
+    cal: Option<&Calibration>,
+    tracked: Option<u32>,
+    failure: Option<(&str, &str)>,
+    duty: Option<i16>,
+) -> String {
     let f = |g: fn(&Calibration) -> f64| opt(cal.map(g));
     let stiffness = cal.and_then(|c| c.stiffness_mnm_per_rad);
     let v = serde_json::json!({
@@ -224,6 +236,7 @@ fn json(cal: Option<&Calibration>, failure: Option<(&str, &str)>, duty: Option<i
         "current_offset_counts": f(|c| c.current_offset_counts.into()),
         "pot_offset_counts": f(|c| c.pot_offset_counts.into()),
         "resistance_ohm": f(|c| f64::from(c.resistance_mohm) * 1e-3),
+        "tracked_resistance_ohm": opt(tracked.map(|r| f64::from(r) * 1e-3)),
         "back_emf_v_s_per_rad": f(|c| f64::from(c.back_emf_uv_s_per_rad) * 1e-6),
         "gear_friction_nm": f(|c| f64::from(c.gear_friction_unm) * 1e-6),
         "link_inertia_kg_m2": f(|c| f64::from(c.link_inertia_kg_mm2) * 1e-6),
@@ -238,8 +251,14 @@ fn sign_text(v: i8, plus: &str, minus: &str) -> String {
     format!("{v:+} ({})", if v < 0 { minus } else { plus })
 }
 
-/// The result as aligned `name  value` lines.
-fn text(cal: Option<&Calibration>, failure: Option<(&str, &str)>, duty: Option<i16>) -> String {
+/// The result as aligned `name  value` lines; `tracked` the resistance in force instead of
+/// the calibration's, mΩ.
+fn text(
+    cal: Option<&Calibration>,
+    tracked: Option<u32>,
+    failure: Option<(&str, &str)>,
+    duty: Option<i16>,
+) -> String {
     let mut s = String::new();
     if let Some((name, message)) = failure {
         let _ = writeln!(s, "calibration failed: {name}\n{message}");
@@ -255,6 +274,12 @@ fn text(cal: Option<&Calibration>, failure: Option<(&str, &str)>, duty: Option<i
     let Some(c) = cal else {
         return s;
     };
+    let now = tracked.map_or_else(String::new, |r| {
+        format!(
+            "; {} Ω in force, as a held link showed it since (not stored)",
+            show(r.into(), 3)
+        )
+    });
     let rows = [
         (
             "motor polarity",
@@ -282,7 +307,7 @@ fn text(cal: Option<&Calibration>, failure: Option<(&str, &str)>, duty: Option<i
         (
             "resistance",
             format!(
-                "{} Ω (as the current sense sees it)",
+                "{} Ω (as the current sense sees it){now}",
                 show(c.resistance_mohm.into(), 3)
             ),
         ),
@@ -339,7 +364,8 @@ mod tests {
 
     #[test]
     fn json_has_every_field_in_si_units() {
-        let v: serde_json::Value = serde_json::from_str(&json(Some(&CAL), None, Some(0))).unwrap();
+        let v: serde_json::Value =
+            serde_json::from_str(&json(Some(&CAL), None, None, Some(0))).unwrap();
         assert_eq!(v["status"], "ok");
         assert_eq!(v["motor_polarity"], -1.0);
         assert_eq!(v["current_offset_counts"], -250.0);
@@ -349,19 +375,35 @@ mod tests {
         assert!(v["stiffness_nm_per_rad"].is_null());
         assert!(v["clutch_length_m"].is_null());
         assert!(v["stiffness_uncertainty_pct"].is_null());
+        assert!(v["tracked_resistance_ohm"].is_null());
+    }
+
+    #[test]
+    fn a_tracked_resistance_is_shown_beside_the_calibrations() {
+        let v: serde_json::Value =
+            serde_json::from_str(&json(Some(&CAL), Some(10_192), None, None)).unwrap();
+        assert!((v["resistance_ohm"].as_f64().unwrap() - 7.84).abs() < 1e-12);
+        assert!((v["tracked_resistance_ohm"].as_f64().unwrap() - 10.192).abs() < 1e-12);
+        let t = text(Some(&CAL), Some(10_192), None, None);
+        assert!(
+            t.contains("7.84 Ω (as the current sense sees it); 10.192 Ω in force"),
+            "{t}"
+        );
+        assert!(!text(Some(&CAL), None, None, None).contains("in force"));
     }
 
     #[test]
     fn a_failure_is_named_with_its_message() {
         let code = Failure::EncoderDead.code();
         let f = failure_of(code);
-        let v: serde_json::Value = serde_json::from_str(&json(None, Some(f), Some(0))).unwrap();
+        let v: serde_json::Value =
+            serde_json::from_str(&json(None, None, Some(f), Some(0))).unwrap();
         assert_eq!(v["status"], "encoder-dead");
         assert!(v["message"].as_str().unwrap().contains("link encoder"));
         assert!(v["resistance_ohm"].is_null());
         assert_eq!(v["motor_duty_permille"], 0);
-        assert!(text(None, Some(f), Some(0)).contains("the motor is off"));
-        assert!(text(None, Some(f), Some(80)).contains("still drives"));
+        assert!(text(None, None, Some(f), Some(0)).contains("the motor is off"));
+        assert!(text(None, None, Some(f), Some(80)).contains("still drives"));
         assert_eq!(failure_of(0).0, "unknown");
     }
 }

@@ -423,12 +423,18 @@ pub fn reply() -> impl Strategy<Value = Reply> {
                     fault: FaultRecord { code, value, tick }
                 }),
             }),
-        (calibration_progress(), prop::option::of(calibration())).prop_map(
-            |(progress, calibration)| Reply::Calibration(CalibrationReport {
-                progress,
-                calibration
-            })
-        ),
+        (
+            calibration_progress(),
+            prop::option::of(calibration()),
+            prop::option::of(any::<u16>())
+        )
+            .prop_map(|(progress, calibration, tracked)| Reply::Calibration(
+                CalibrationReport {
+                    progress,
+                    calibration,
+                    tracked_resistance_permille: tracked,
+                }
+            )),
     ]
 }
 
@@ -758,6 +764,7 @@ impl Device for MockDevice {
         Ok(CalibrationReport {
             progress: CalibrationProgress::Idle,
             calibration: None,
+            tracked_resistance_permille: None,
         })
     }
 }
