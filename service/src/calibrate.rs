@@ -290,8 +290,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         self.actuator
             .lock(|a| a.pipeline.install(&correction))
             .map_err(|_| ErrorCode::OutOfRange)?;
-        self.service.tracks_resistance = true;
-        self.service.tracked_resistance_permille = None;
+        self.service.set_resistance_tracking(true);
         Ok(())
     }
 

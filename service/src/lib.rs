@@ -500,6 +500,14 @@ impl Service {
         }
     }
 
+    /// Starts (`on`: a calibration was just put in force) or stops tracking the motor's
+    /// resistance; either way the calibration's (or the configured) resistance is the one
+    /// reported in force.
+    fn set_resistance_tracking(&mut self, on: bool) {
+        self.tracks_resistance = on;
+        self.tracked_resistance_permille = None;
+    }
+
     /// The controller configuration in force.
     #[must_use]
     pub const fn config(&self) -> &Config {

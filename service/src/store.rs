@@ -374,8 +374,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         let defaults = service.settings.defaults;
         // Until the stored calibration (if any) is applied below, nothing confirms the clutch.
         service.calibrated_longest_um = None;
-        service.tracks_resistance = false;
-        service.tracked_resistance_permille = None;
+        service.set_resistance_tracking(false);
         let wanted = match boot.set.config {
             Some(c) => model_config(&c, &defaults),
             None => Ok(defaults),
@@ -401,8 +400,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         settings.stored = RecordSet::default();
         let defaults = settings.defaults;
         self.service.calibrated_longest_um = None;
-        self.service.tracks_resistance = false;
-        self.service.tracked_resistance_permille = None;
+        self.service.set_resistance_tracking(false);
         self.reconfigure(defaults.0, defaults.1).map(|_| ())
     }
 
