@@ -974,7 +974,8 @@ impl FloatController {
                 .creep
                 .update(delta, resting, in_count, e_raw > 0.0, beyond);
             if dir == 0 {
-                (0.0, 0.0)
+                let press = self.creep.press(!in_count && pressed, e_raw > 0.0);
+                (0.0, f32::from(press) * s.coulomb)
             } else {
                 let w = f32::from(dir) * i32f32(CREEP_SPEED.to_bits());
                 let f = s.coulomb + self.creep.boost_q16() as f32 / 65_536.0;

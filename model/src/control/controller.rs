@@ -426,13 +426,14 @@ impl Controller {
         // load holds on a wall (the integrator holds more than `PRESSED_LOAD_NM`) at a
         // stationary reference: its count's centre, so that the loop is not content with
         // the neighbouring count (design §11, "A light load one count off").
-        let nearest = if in_count {
-            e_q32
-        } else if stationary
+        let pressed_off = !in_count
+            && stationary
             && load_abs >= s.pressed_load_q16
             && self.w_link.saturating_abs() < s.w_deadband_q16
-            && !self.hunt.hunting()
-        {
+            && !self.hunt.hunting();
+        let nearest = if in_count {
+            e_q32
+        } else if pressed_off {
             0
         } else if e_q32 < 0 {
             -ENCODER_HALF_COUNT_Q32
@@ -493,12 +494,15 @@ impl Controller {
         // The creep: a still link more than a count off, pushed there at a crawl by a
         // gear reference of ±`CREEP_SPEED`, its velocity feed-forward and the configured
         // Coulomb friction plus a drive that grows while the link does not move
-        // (design §11, "The creep at rest").
+        // (design §11, "The creep at rest"). A pressed link still off its count gets the
+        // configured Coulomb friction towards the target (design §11, "A light load one
+        // count off").
         let (creep_w, u_creep) = if stationary {
             self.creep.step(
                 delta,
                 resting,
                 in_count,
+                pressed_off,
                 e_q32,
                 self.ff.vel,
                 s.coulomb_duty_q16,

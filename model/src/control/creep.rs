@@ -9,6 +9,10 @@
 //! last two changes. A link that slows to a stop (friction) passes; one that drifts at a
 //! constant speed through the free play (no friction) does not, unless a bounce off the
 //! still gear has just changed its pace.
+//!
+//! The same still count times the push of a link that a load presses on a wall while it
+//! stands off its target's count ([`Creep::press`], docs/design.md §11, "A light load one
+//! count off").
 
 use fixed::types::I32F32;
 
@@ -31,6 +35,12 @@ pub const CREEP_BOOST_PER_TICK_Q16: i32 = 1000;
 /// off-nominal grids (with 12 ‰, 64 of their runs over six seeds were above it, against
 /// 54).
 pub const CREEP_BOOST_MAX_PERMILLE: i32 = 8;
+
+/// Ticks without a count change before a link that a load presses on a wall, off its
+/// target's count, gets the configured Coulomb friction's duty towards the target (32 ms;
+/// 16 swung the duty at rest more and latched more faults, 48 settled fewer runs,
+/// docs/design.md §11, "A light load one count off").
+pub const PRESS_STILL_TICKS: u16 = 32;
 
 /// `CREEP_SPEED` in rad/s Q16.
 pub(crate) const CREEP_SPEED_Q16: i32 = (CREEP_SPEED.to_bits() >> 16) as i32;
@@ -82,14 +92,17 @@ impl Creep {
     /// One tick of a stationary reference, as [`Creep::update`], with the push's gear
     /// velocity reference (rad/s Q16, for the gear hold) and duty (‰ Q16): the velocity
     /// feed-forward `ff_vel` of ±`CREEP_SPEED` plus the configured Coulomb friction's duty
-    /// (‰ Q16) and the extra drive. Out of line: on the move's ticks, the control step's
-    /// most expensive, it costs a branch.
+    /// `coulomb_duty_q16` and the extra drive; without a push, the duty of
+    /// [`Creep::press`] for a link pressed on a wall off its count (`pressed_off`). Out of
+    /// line: on the move's ticks, the control step's most expensive, it costs a branch.
+    #[allow(clippy::too_many_arguments)]
     #[inline(never)]
     pub fn step(
         &mut self,
         delta: i32,
         resting: bool,
         in_count: bool,
+        pressed_off: bool,
         e_q32: i64,
         ff_vel: Gain,
         coulomb_duty_q16: i32,
@@ -98,7 +111,10 @@ impl Creep {
         let beyond = e_q32.saturating_abs() > 2 * ENCODER_HALF_COUNT_Q32;
         let dir = self.update(delta, resting, in_count, positive, beyond);
         if dir == 0 {
-            return (0, 0);
+            return (
+                0,
+                coulomb_duty_q16 * i32::from(self.press(pressed_off, positive)),
+            );
         }
         let w = CREEP_SPEED_Q16 * i32::from(dir);
         let f = coulomb_duty_q16 + self.boost_q16;
@@ -106,6 +122,25 @@ impl Creep {
             w,
             ff_vel.apply(w).saturating_add(if dir > 0 { f } else { -f }),
         )
+    }
+
+    /// The push of a link that a load presses on a wall of the free play while it stands
+    /// off its target's count (`pressed_off`, after this tick's [`Creep::update`]): the
+    /// direction of the error (`positive`: r − θ_l > 0) once the link's count has not
+    /// changed for `PRESS_STILL_TICKS`, else 0. A count's error asks little of the
+    /// position term (a quarter of it for a load below `FLOAT_LOAD_NM`, whose loop is
+    /// soft near the target) against the gear's dry friction, and the integrator took
+    /// hundreds of ms to wind past it; the configured friction's duty ends that wait
+    /// (docs/design.md §11, "A light load one count off"). It stops with the first count change and restarts after as many still ticks.
+    #[must_use]
+    pub const fn press(&self, pressed_off: bool, positive: bool) -> i8 {
+        if !pressed_off || self.still < PRESS_STILL_TICKS {
+            0
+        } else if positive {
+            1
+        } else {
+            -1
+        }
     }
 
     /// One tick of a stationary reference (a moving one resets the state to
@@ -163,6 +198,30 @@ mod tests {
     /// `n` resting ticks without a count change at error `e`; the last direction.
     fn quiet(c: &mut Creep, n: usize, e: i64) -> i8 {
         (0..n).fold(0, |_, _| tick(c, 0, true, false, e))
+    }
+
+    #[test]
+    fn a_pressed_link_off_its_count_gets_the_friction_duty_once_still() {
+        let mut c = Creep::NEW;
+        // Not resting (a load holds the link): the creep itself never pushes.
+        for _ in 1..PRESS_STILL_TICKS {
+            assert_eq!(tick(&mut c, 0, false, false, -COUNT), 0);
+        }
+        assert_eq!(c.press(true, false), 0);
+        assert_eq!(tick(&mut c, 0, false, false, -COUNT), 0);
+        assert_eq!((c.press(true, false), c.press(true, true)), (-1, 1));
+        assert_eq!(c.press(false, true), 0);
+        // Through `step`: no gear velocity reference, the friction's duty towards the
+        // target; none for a link that is not pressed.
+        let ff = Gain::from_int(1).expect("gain");
+        assert_eq!(
+            c.step(0, false, false, true, -COUNT, ff, 7 << 16),
+            (0, -7 << 16)
+        );
+        assert_eq!(c.step(0, false, false, false, -COUNT, ff, 7 << 16), (0, 0));
+        // A count change: the wait starts again.
+        assert_eq!(c.step(1, false, false, true, -COUNT, ff, 7 << 16), (0, 0));
+        assert_eq!(c.press(true, false), 0);
     }
 
     #[test]
