@@ -131,7 +131,8 @@ impl Creep {
     /// position term (a quarter of it for a load below `FLOAT_LOAD_NM`, whose loop is
     /// soft near the target) against the gear's dry friction, and the integrator took
     /// hundreds of ms to wind past it; the configured friction's duty ends that wait
-    /// (docs/design.md §11, "A light load one count off"). It stops with the first count change and restarts after as many still ticks.
+    /// (docs/design.md §11, "A light load one count off"). It stops with the first count
+    /// change and restarts after as many still ticks.
     #[must_use]
     pub const fn press(&self, pressed_off: bool, positive: bool) -> i8 {
         if !pressed_off || self.still < PRESS_STILL_TICKS {
