@@ -549,8 +549,8 @@ impl Case {
         if let Some(f) = self.in_force {
             sc.correction = f.correction;
             sc.supervision = f.supervision;
-            // A calibration is in force: the service tracks the motor's resistance.
-            sc.track_resistance = true;
+            // A calibration is in force: the current offset is known to the tracker.
+            sc.offset_calibrated = true;
         }
         sc
     }

@@ -349,16 +349,24 @@ impl Servo {
     /// The configuration to prepare when the armature resistance a still, held link under
     /// load showed (`window`, kept by the caller after each tick: [`RestResistance::tick`])
     /// differs from the configured one by more than its tolerance: the one in force with
-    /// that resistance, and the supervisor's settings in force. Called before a command
-    /// (docs/design.md §11, "Tracking a warm motor's resistance").
+    /// that resistance, and the supervisor's settings in force. `current_offset_q16` is how
+    /// far the current sense's zero may be off, A Q16 (0 with a calibration in force,
+    /// [`UNCALIBRATED_OFFSET_Q16`] without: [`RestResistance::differs_from`]). Called
+    /// before a command (docs/design.md §11, "Tracking a warm motor's resistance").
+    ///
+    /// [`UNCALIBRATED_OFFSET_Q16`]: crate::control::rest_resistance::UNCALIBRATED_OFFSET_Q16
     #[must_use]
     pub fn tracked_configuration(
         &self,
         window: &RestResistance,
+        current_offset_q16: i64,
     ) -> Option<(Config, SupervisorConfig)> {
         let mut config = *self.controller.config();
-        config.motor.resistance_ohm =
-            window.differs_from(config.motor.supply_v, config.motor.resistance_ohm)?;
+        config.motor.resistance_ohm = window.differs_from(
+            config.motor.supply_v,
+            config.motor.resistance_ohm,
+            current_offset_q16,
+        )?;
         Some((config, *self.supervisor.config()))
     }
 

@@ -16,7 +16,7 @@
 
 use model::calibration::correction::SensorCorrection;
 use model::calibration::pipeline::Pipeline;
-use model::control::rest_resistance::RestResistance;
+use model::control::rest_resistance::{RestResistance, UNCALIBRATED_OFFSET_Q16};
 use model::control::{Command, Config, ControlError, Flags, ImpedanceCommand, Schedule};
 use model::sensors::encoder_delta;
 use model::servo::{BridgeDemand, Prepared, Servo, ServoError, TickInput};
@@ -88,10 +88,11 @@ pub struct Scenario {
     /// calibration found them; [`SensorCorrection::NOMINAL`] for the nominal build):
     /// raw readings → [`Pipeline`] → servo, as on the boards.
     pub correction: SensorCorrection,
-    /// Before each motion command, configure the armature resistance a held link under load
-    /// showed ([`Servo::tracked_configuration`]), as the boards' service does while a
-    /// calibration is in force. Default off.
-    pub track_resistance: bool,
+    /// A calibration is in force: before each motion command the armature resistance a
+    /// held link under load showed is configured taking the current offset as known
+    /// ([`Servo::tracked_configuration`]); without one (the default) only as far as the
+    /// offset's tolerance allows, as the boards' service does.
+    pub offset_calibrated: bool,
 }
 
 impl Scenario {
@@ -117,7 +118,7 @@ impl Scenario {
             impedance: None,
             gravity_nm: 0.0,
             correction: SensorCorrection::NOMINAL,
-            track_resistance: false,
+            offset_calibrated: false,
         }
     }
 }
@@ -594,8 +595,13 @@ where
             // The service tracks before a move, a step or a sine (not a hold, not an
             // impedance command); a configuration that does not take keeps the one in force.
             let impedance = tick == sc.settle_ticks && sc.impedance.is_some();
-            if sc.track_resistance && !impedance && !matches!(command, Command::Hold) {
-                if let Some((config, supervision)) = servo.tracked_configuration(&window) {
+            let offset = if sc.offset_calibrated {
+                0
+            } else {
+                UNCALIBRATED_OFFSET_Q16
+            };
+            if !impedance && !matches!(command, Command::Hold) {
+                if let Some((config, supervision)) = servo.tracked_configuration(&window, offset) {
                     if let Ok(p) = Prepared::new(&sc.design, &config, &supervision) {
                         let _ = servo.adopt_prepared(&p);
                     }

@@ -290,7 +290,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         self.actuator
             .lock(|a| a.pipeline.install(&correction))
             .map_err(|_| ErrorCode::OutOfRange)?;
-        self.service.set_resistance_tracking(true);
+        self.service.set_offset_calibrated(true);
         Ok(())
     }
 

@@ -24,7 +24,7 @@
 #![deny(missing_docs)]
 
 use model::calibration::pipeline::Pipeline;
-use model::control::rest_resistance::RestResistance;
+use model::control::rest_resistance::{RestResistance, UNCALIBRATED_OFFSET_Q16};
 use model::control::{ClutchSetting, Command, Config, PidGains};
 use model::sensors::POT_COUNT_Q32;
 use model::servo::{Prepared, Servo, ServoError, ServoState, TickInput, TickOutput};
@@ -476,9 +476,10 @@ pub struct Service {
     /// The longest clutch, µm, the calibration in force leaves possible (`None`: no
     /// calibration, or one that could not bound it).
     calibrated_longest_um: Option<u32>,
-    /// A calibration is in force (its current offset known to a fraction of a count): the
-    /// motor's resistance is tracked between commands ([`Servo::tracked_configuration`]).
-    tracks_resistance: bool,
+    /// A calibration is in force: its current offset is known to a fraction of a count,
+    /// and the resistance tracked between commands ([`Servo::tracked_configuration`]) takes
+    /// it as exact; without one it allows for the offset's tolerance.
+    offset_calibrated: bool,
     /// The resistance a held link showed, ‰ of the calibration's, in force instead of it
     /// (`None`: the calibration's, or no calibration).
     tracked_resistance_permille: Option<u16>,
@@ -495,16 +496,15 @@ impl Service {
             supervision,
             settings: store::Settings::new(config, supervision),
             calibrated_longest_um: None,
-            tracks_resistance: false,
+            offset_calibrated: false,
             tracked_resistance_permille: None,
         }
     }
 
-    /// Starts (`on`: a calibration was just put in force) or stops tracking the motor's
-    /// resistance; either way the calibration's (or the configured) resistance is the one
-    /// reported in force.
-    fn set_resistance_tracking(&mut self, on: bool) {
-        self.tracks_resistance = on;
+    /// Whether a calibration was just put in force (`on`) or left; either way the
+    /// calibration's (or the configured) resistance is the one reported in force.
+    fn set_offset_calibrated(&mut self, on: bool) {
+        self.offset_calibrated = on;
         self.tracked_resistance_permille = None;
     }
 
@@ -570,14 +570,20 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
     }
 
     /// Configures the armature resistance a held link under load showed when it
-    /// differs from the one in force (a motor that warmed since its calibration,
-    /// docs/design.md §11, "Tracking a warm motor's resistance"): prepared unlocked (the
+    /// differs from the one in force (a motor warmer or colder than configured or
+    /// calibrated, docs/design.md §11, "Tracking a warm motor's resistance"; without a
+    /// calibration only as far as the current offset's tolerance allows): prepared unlocked (the
     /// slow maths), adopted locked with the servo's state kept. A refused configuration
     /// keeps the one in force. `plant::harness` does the same before its motion commands.
     fn track_resistance(&mut self) {
+        let offset = if self.service.offset_calibrated {
+            0
+        } else {
+            UNCALIBRATED_OFFSET_Q16
+        };
         let Some((config, supervision)) = self
             .actuator
-            .lock(|a| a.servo.tracked_configuration(&a.rest_resistance))
+            .lock(|a| a.servo.tracked_configuration(&a.rest_resistance, offset))
         else {
             return;
         };
@@ -616,12 +622,10 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         }
     }
 
-    /// Gives the servo a motion command; only while enabled. With a calibration in force,
-    /// first the resistance a held link under load showed ([`Self::track_resistance`]).
+    /// Gives the servo a motion command; only while enabled. First the resistance a held
+    /// link under load showed ([`Self::track_resistance`]).
     fn motion(&mut self, cmd: Command) -> Result<(), ErrorCode> {
-        if self.service.tracks_resistance {
-            self.track_resistance();
-        }
+        self.track_resistance();
         self.actuator.lock(|a| {
             if a.servo.state() != ServoState::Enabled {
                 return Err(ErrorCode::NotAllowed);

@@ -374,7 +374,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         let defaults = service.settings.defaults;
         // Until the stored calibration (if any) is applied below, nothing confirms the clutch.
         service.calibrated_longest_um = None;
-        service.set_resistance_tracking(false);
+        service.set_offset_calibrated(false);
         let wanted = match boot.set.config {
             Some(c) => model_config(&c, &defaults),
             None => Ok(defaults),
@@ -400,7 +400,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         settings.stored = RecordSet::default();
         let defaults = settings.defaults;
         self.service.calibrated_longest_um = None;
-        self.service.set_resistance_tracking(false);
+        self.service.set_offset_calibrated(false);
         self.reconfigure(defaults.0, defaults.1).map(|_| ())
     }
 

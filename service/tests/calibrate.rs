@@ -182,6 +182,38 @@ fn a_motor_warmer_than_at_its_calibration_has_its_resistance_tracked_at_a_comman
 }
 
 #[test]
+fn without_a_calibration_a_warm_motor_is_tracked_as_far_as_the_offsets_tolerance_allows() {
+    let mut b = Bench::new(0.0);
+    for _ in 0..model::calibration::correction::BOOT_TICKS {
+        b.step();
+    }
+    let configured = b.service.config().motor.resistance_ohm.to_num::<f64>();
+    assert_eq!(b.ask(Request::Enable), Reply::Ok);
+    // Copper 77 K warmer than the datasheet's (×1.3), a 0.25 N·m load held for a second.
+    let r = b.plant().config().motor.resistance_ohm;
+    b.plant().set_resistance(1.3 * r);
+    b.plant().set_external_torque(0.25);
+    for _ in 0..1000 {
+        b.step();
+    }
+    assert_eq!(
+        b.ask(Request::Move {
+            target_urad: 100_000,
+            duration_ms: 300
+        }),
+        Reply::Ok
+    );
+    // The held current, about 0.25 A, may be 20 counts (0.0195 A) off without a
+    // calibration: R ×1.3 is configured as the nearest it allows, ×1.3·0.25/0.2695.
+    let ratio = b.service.config().motor.resistance_ohm.to_num::<f64>() / configured;
+    assert!((ratio - 1.206).abs() < 0.02, "R ×{ratio} configured");
+    assert_eq!(report(&mut b).tracked_resistance_permille, None);
+    for _ in 0..1500 {
+        b.step();
+    }
+}
+
+#[test]
 fn the_host_stops_a_calibration_and_the_motor_goes_off() {
     let mut b = Bench::new(0.0);
     assert_eq!(b.ask(Request::Calibrate { start: true }), Reply::Ok);

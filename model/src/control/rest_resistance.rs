@@ -11,16 +11,20 @@
 //! with the duty the controller applied (‰), V̂_s the configured supply and i the current
 //! it measured (A). R_eff lumps the supply's and the current sense's gain errors with the
 //! copper's temperature, which is what the loop's duty-to-current scale needs. The current
-//! offset enters whole, so the estimate is only taken with a calibration in force (the
-//! offset known to a fraction of a count, docs/calibration.md). Per tick, after the control
-//! step: two sums and two compares ([`RestResistance::tick`]); the division when a command
-//! is given ([`RestResistance::estimate`]), and the caller prepares the new schedule
-//! outside the tick (`Servo::tracked_configuration`, `Servo::adopt_prepared`).
+//! offset enters whole: with a calibration in force it is known to a fraction of a count
+//! (docs/calibration.md) and the estimate is taken as it is; without one it may be
+//! [`UNCALIBRATED_OFFSET_Q16`] either way, and the window allows any R between
+//! Σduty·V̂_s/(1000·(Σi ± n·δ)): the resistance configured is the one of that band nearest
+//! the one in force ([`RestResistance::differs_from`]). Per tick, after the control step:
+//! two sums and two compares ([`RestResistance::tick`]); the divisions when a command is
+//! given, and the caller prepares the new schedule outside the tick
+//! (`Servo::tracked_configuration`, `Servo::adopt_prepared`).
 
 use fixed::types::I32F32;
 
+use super::schedule::CURRENT_OFFSET_TOLERANCE_COUNTS;
 use super::Output;
-use crate::sensors::ENCODER_COUNT_Q32;
+use crate::sensors::{ADC_COUNTS_PER_A, ENCODER_COUNT_Q32};
 use crate::units::Angle;
 
 /// Still ticks (ms) a window needs before it gives an estimate. Measured on calibrated
@@ -35,6 +39,12 @@ pub const MIN_CURRENT_Q16: i64 = 2621;
 /// Relative difference from the configured resistance, in thousandths, below which the
 /// estimate leaves the configuration alone (a rebuild restarts the clutch monitor).
 pub const TOLERANCE_PERMILLE: i64 = 50;
+/// Current-sense offset, A Q16, a window allows for without a calibration in force: the
+/// observer's tolerance of `CURRENT_OFFSET_TOLERANCE_COUNTS` (20 ADC counts, 0.0195 A;
+/// docs/design.md §9). With a calibration in force the offset is known to 0.2 counts, 0.5 %
+/// of [`MIN_CURRENT_Q16`], and taken as exact (0).
+pub const UNCALIBRATED_OFFSET_Q16: i64 =
+    CURRENT_OFFSET_TOLERANCE_COUNTS as i64 * 65_536 / ADC_COUNTS_PER_A as i64;
 /// The window stops growing here (the sums stay far inside i64).
 const MAX_TICKS: u32 = 1 << 20;
 
@@ -110,13 +120,41 @@ impl RestResistance {
         i64::try_from(num / den).ok().map(I32F32::from_bits)
     }
 
-    /// The estimate when it differs from `configured` by more than
-    /// [`TOLERANCE_PERMILLE`]: the resistance to configure before the next command.
+    /// The resistance to configure before the next command, when the window shows one
+    /// that differs from `configured` by more than [`TOLERANCE_PERMILLE`]. With the current
+    /// offset unknown within ±`offset_q16` (A Q16, [`UNCALIBRATED_OFFSET_Q16`] without a
+    /// calibration, 0 with one) the window allows R_eff between Σduty·V̂_s/(1000·(|Σi| +
+    /// n·δ)) and Σduty·V̂_s/(1000·(|Σi| − n·δ)) (unbounded above when n·δ ≥ |Σi|): `None`
+    /// while `configured` lies in that band, else its bound nearest `configured`, the
+    /// smallest correction the measurement asks for.
     #[must_use]
-    pub fn differs_from(&self, supply_v: I32F32, configured: I32F32) -> Option<I32F32> {
+    pub fn differs_from(
+        &self,
+        supply_v: I32F32,
+        configured: I32F32,
+        offset_q16: i64,
+    ) -> Option<I32F32> {
         let r = self.estimate(supply_v)?;
-        let diff = (i128::from(r.to_bits()) - i128::from(configured.to_bits())).abs() * 1000;
-        (diff > i128::from(TOLERANCE_PERMILLE) * i128::from(configured.to_bits())).then_some(r)
+        let c = i128::from(configured.to_bits());
+        let r = if offset_q16 > 0 {
+            // Both sums have the duty's sign (`estimate`); |Σi| ≤ 2⁵¹, n·δ ≤ 2⁵⁰.
+            let n_off = i128::from(offset_q16) * i128::from(self.ticks);
+            let si = i128::from(self.current_sum_q16).abs();
+            let num = (i128::from(self.duty_sum).abs() * i128::from(supply_v.to_bits())) << 16;
+            let low = num / (1000 * (si + n_off));
+            if c < low {
+                low
+            } else if si > n_off && c > num / (1000 * (si - n_off)) {
+                num / (1000 * (si - n_off))
+            } else {
+                return None;
+            }
+        } else {
+            i128::from(r.to_bits())
+        };
+        let diff = (r - c).abs() * 1000;
+        let r = I32F32::from_bits(i64::try_from(r).ok()?);
+        (diff > i128::from(TOLERANCE_PERMILLE) * c).then_some(r)
     }
 }
 
@@ -159,8 +197,81 @@ mod tests {
         }
         assert!((n.estimate(v_s).unwrap().to_num::<f64>() - 9.6).abs() < 1e-3);
         // 9.6 against 8 Ω configured is 20 % off; against 9.4 Ω, 2 %.
-        assert!(w.differs_from(v_s, I32F32::from_num(8)).is_some());
-        assert_eq!(w.differs_from(v_s, I32F32::from_num(9.4)), None);
+        assert!(w.differs_from(v_s, I32F32::from_num(8), 0).is_some());
+        assert_eq!(w.differs_from(v_s, I32F32::from_num(9.4), 0), None);
+    }
+
+    #[test]
+    fn an_unknown_offset_moves_the_resistance_only_to_the_nearest_it_allows() {
+        let v_s = I32F32::from_num(12);
+        let ohm = |r: Option<I32F32>| r.map(|r| r.to_num::<f64>());
+        let near = |r: Option<f64>, want: f64| r.is_some_and(|r| (r - want).abs() < 1e-3);
+        let mut w = RestResistance::NEW;
+        for _ in 0..=WINDOW_TICKS {
+            w.tick(true, &out(200, 0.25, 7));
+        }
+        // 2.4 V over 0.25 A ∓ 20/1024 A: 8.9043 … 10.4136 Ω.
+        assert_eq!(UNCALIBRATED_OFFSET_Q16, 1280);
+        let d = UNCALIBRATED_OFFSET_Q16;
+        let r = |configured: f64| ohm(w.differs_from(v_s, I32F32::from_num(configured), d));
+        assert!(near(r(8.0), 2.4 / (0.25 + 20.0 / 1024.0)), "{:?}", r(8.0));
+        assert!(near(r(12.0), 2.4 / (0.25 - 20.0 / 1024.0)), "{:?}", r(12.0));
+        assert_eq!(r(9.6), None);
+        assert_eq!(r(8.904), None);
+        // The bound is 3.5 % above 8.6 Ω: within the tolerance.
+        assert_eq!(r(8.6), None);
+        // An offset as large as the current leaves no upper bound.
+        let mut small = RestResistance::NEW;
+        for _ in 0..=WINDOW_TICKS {
+            small.tick(true, &out(-24, -0.0625, 7));
+        }
+        let big = 65_536 / 10;
+        let r = |configured: f64| ohm(small.differs_from(v_s, I32F32::from_num(configured), big));
+        assert_eq!(r(100.0), None);
+        assert!(near(r(1.0), 0.288 / (0.0625 + 0.1)), "{:?}", r(1.0));
+    }
+
+    /// Whatever the offset within its tolerance, the resistance configured lies between
+    /// the one in force and the true one (the window's duty over the true current): the
+    /// tracking never goes past the motor it measures.
+    #[test]
+    fn an_offset_within_its_tolerance_never_moves_the_resistance_past_the_true_one() {
+        let v_s = I32F32::from_num(12);
+        let configured = 8.0;
+        let (mut moved, mut cases) = (0, 0);
+        for r_true in [6.4, 7.2, 8.0, 8.8, 9.6, 10.4, 11.2] {
+            for i_true in [0.05, 0.08, 0.12, 0.2, 0.3] {
+                for offset_counts in [-20.0, -12.5, -5.0, 0.0, 5.0, 12.5, 20.0] {
+                    let duty = (r_true * i_true * 1000.0 / 12.0_f64).round();
+                    let measured = i_true + offset_counts / 1024.0;
+                    let mut w = RestResistance::NEW;
+                    for _ in 0..=WINDOW_TICKS {
+                        w.tick(true, &out(duty as i16, measured, 7));
+                    }
+                    let truth = duty * 12.0 / (1000.0 * i_true);
+                    let got =
+                        w.differs_from(v_s, I32F32::from_num(configured), UNCALIBRATED_OFFSET_Q16);
+                    cases += 1;
+                    if let Some(r) = got {
+                        let r = r.to_num::<f64>();
+                        moved += 1;
+                        let (lo, hi) = if truth < configured {
+                            (truth, configured)
+                        } else {
+                            (configured, truth)
+                        };
+                        // The Q16 current's rounding: 2⁻¹⁶ A of 0.03 A and more.
+                        let eps = 1e-3 * hi;
+                        assert!(
+                            lo - eps <= r && r <= hi + eps,
+                            "R {r_true}, {i_true} A, offset {offset_counts}: {r} outside {lo}…{hi}"
+                        );
+                    }
+                }
+            }
+        }
+        // The rule does correct: more than a quarter of these windows moved it.
+        assert!(moved * 4 > cases, "{moved} of {cases}");
     }
 
     #[test]
