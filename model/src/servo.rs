@@ -9,7 +9,7 @@
 //! → [`ServoState::Disabled`]. Nothing but an explicit clear leaves `Faulted`, and nothing
 //! but an explicit enable turns the motor on.
 
-use crate::control::rest_resistance::RestResistance;
+use crate::control::rest_resistance::{offset_tolerance_q16, RestResistance};
 use crate::control::{
     Command, Config, ControlError, Controller, Impedance, ImpedanceCommand, ImpedanceError,
     Measurements, Output,
@@ -349,23 +349,22 @@ impl Servo {
     /// The configuration to prepare when the armature resistance a still, held link under
     /// load showed (`window`, kept by the caller after each tick: [`RestResistance::tick`])
     /// differs from the configured one by more than its tolerance: the one in force with
-    /// that resistance, and the supervisor's settings in force. `current_offset_q16` is how
-    /// far the current sense's zero may be off, A Q16 (0 with a calibration in force,
-    /// [`UNCALIBRATED_OFFSET_Q16`] without: [`RestResistance::differs_from`]). Called
-    /// before a command (docs/design.md §11, "Tracking a warm motor's resistance").
-    ///
-    /// [`UNCALIBRATED_OFFSET_Q16`]: crate::control::rest_resistance::UNCALIBRATED_OFFSET_Q16
+    /// that resistance, and the supervisor's settings in force. `offset_calibrated`: a
+    /// calibration is in force and the current sense's zero known; without one the
+    /// resistance moves only as far as the offset's tolerance allows
+    /// ([`RestResistance::differs_from`]). Called before a command (docs/design.md §11,
+    /// "Tracking a warm motor's resistance").
     #[must_use]
     pub fn tracked_configuration(
         &self,
         window: &RestResistance,
-        current_offset_q16: i64,
+        offset_calibrated: bool,
     ) -> Option<(Config, SupervisorConfig)> {
         let mut config = *self.controller.config();
         config.motor.resistance_ohm = window.differs_from(
             config.motor.supply_v,
             config.motor.resistance_ohm,
-            current_offset_q16,
+            offset_tolerance_q16(offset_calibrated),
         )?;
         Some((config, *self.supervisor.config()))
     }

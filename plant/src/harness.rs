@@ -16,7 +16,7 @@
 
 use model::calibration::correction::SensorCorrection;
 use model::calibration::pipeline::Pipeline;
-use model::control::rest_resistance::{RestResistance, UNCALIBRATED_OFFSET_Q16};
+use model::control::rest_resistance::RestResistance;
 use model::control::{Command, Config, ControlError, Flags, ImpedanceCommand, Schedule};
 use model::sensors::encoder_delta;
 use model::servo::{BridgeDemand, Prepared, Servo, ServoError, TickInput};
@@ -595,13 +595,10 @@ where
             // The service tracks before a move, a step or a sine (not a hold, not an
             // impedance command); a configuration that does not take keeps the one in force.
             let impedance = tick == sc.settle_ticks && sc.impedance.is_some();
-            let offset = if sc.offset_calibrated {
-                0
-            } else {
-                UNCALIBRATED_OFFSET_Q16
-            };
             if !impedance && !matches!(command, Command::Hold) {
-                if let Some((config, supervision)) = servo.tracked_configuration(&window, offset) {
+                if let Some((config, supervision)) =
+                    servo.tracked_configuration(&window, sc.offset_calibrated)
+                {
                     if let Ok(p) = Prepared::new(&sc.design, &config, &supervision) {
                         let _ = servo.adopt_prepared(&p);
                     }

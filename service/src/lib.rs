@@ -24,7 +24,7 @@
 #![deny(missing_docs)]
 
 use model::calibration::pipeline::Pipeline;
-use model::control::rest_resistance::{RestResistance, UNCALIBRATED_OFFSET_Q16};
+use model::control::rest_resistance::RestResistance;
 use model::control::{ClutchSetting, Command, Config, PidGains};
 use model::sensors::POT_COUNT_Q32;
 use model::servo::{Prepared, Servo, ServoError, ServoState, TickInput, TickOutput};
@@ -576,15 +576,11 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
     /// slow maths), adopted locked with the servo's state kept. A refused configuration
     /// keeps the one in force. `plant::harness` does the same before its motion commands.
     fn track_resistance(&mut self) {
-        let offset = if self.service.offset_calibrated {
-            0
-        } else {
-            UNCALIBRATED_OFFSET_Q16
-        };
-        let Some((config, supervision)) = self
-            .actuator
-            .lock(|a| a.servo.tracked_configuration(&a.rest_resistance, offset))
-        else {
+        let calibrated = self.service.offset_calibrated;
+        let Some((config, supervision)) = self.actuator.lock(|a| {
+            a.servo
+                .tracked_configuration(&a.rest_resistance, calibrated)
+        }) else {
             return;
         };
         let Ok(prepared) = Prepared::new(&self.service.design, &config, &supervision) else {

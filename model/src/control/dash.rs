@@ -68,9 +68,9 @@ pub struct DashGains {
 /// acceleration of the configured link, τ_L/J_l: the beams then stay pressed on one wall
 /// for links up to 1/0.2 = 5 times the configured one as the held duty reads their load:
 /// a link 3× heavier on a motor with R ×1.4 and k_t ×0.9 (the acceptance ranges,
-/// docs/design.md §9) is 3·1.4/0.9 = 4.7×. Measured on the acceptance grid (30 seeds, docs/design.md §11,
-/// "Small raw steps"): 0.35 (2.9×) left 66 more off-nominal overshoots, 0.5 and 1.0 more
-/// still.
+/// docs/design.md §9) is 3·1.4/0.9 = 4.7×. Measured on the acceptance grid (30 seeds,
+/// docs/design.md §11, "Small raw steps"): 0.35 (2.9×) left 66 more off-nominal
+/// overshoots, 0.5 and 1.0 more still.
 pub const CONTACT_FRACTION: fixed::types::I32F32 = fixed::types::I32F32::lit("0.2");
 /// Steps shorter than this many free plays φ_b are small: one crossing of the free play,
 /// 2·φ_b, is then more than 5 % of the step.

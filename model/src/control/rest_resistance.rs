@@ -45,6 +45,17 @@ pub const TOLERANCE_PERMILLE: i64 = 50;
 /// of [`MIN_CURRENT_Q16`], and taken as exact (0).
 pub const UNCALIBRATED_OFFSET_Q16: i64 =
     CURRENT_OFFSET_TOLERANCE_COUNTS as i64 * 65_536 / ADC_COUNTS_PER_A as i64;
+
+/// How far the current sense's zero may be off, A Q16: 0 with a calibration in force
+/// (`offset_calibrated`), [`UNCALIBRATED_OFFSET_Q16`] without.
+#[must_use]
+pub const fn offset_tolerance_q16(offset_calibrated: bool) -> i64 {
+    if offset_calibrated {
+        0
+    } else {
+        UNCALIBRATED_OFFSET_Q16
+    }
+}
 /// The window stops growing here (the sums stay far inside i64).
 const MAX_TICKS: u32 = 1 << 20;
 
