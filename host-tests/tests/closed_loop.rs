@@ -258,45 +258,12 @@ fn assert_every_limit_but_the_time_bound(cases: &[grid::Case]) {
 
 /// A warm motor (R ×1.21…×1.36) holding a load: without a calibration the current offset
 /// is unknown, and the loop, asking R̂/R of the torque it means, overshot a short step or
-/// move by 21–27 %. The hold before the command now sets R as far as the offset's
-/// tolerance allows (docs/design.md §11, "Tracking a warm motor's resistance"): off-nominal
-/// seed 1000120 #210, seed 1000129 #89 and seed 1000123 #24, their draws written out in
-/// full, meet every limit of the grid but the raw steps' time-optimal bound.
+/// move by 21–27 % (`grid::warm_motors_overshooting`). The hold before the command now sets
+/// R as far as the offset's tolerance allows (docs/design.md §11, "Tracking a warm motor's
+/// resistance"): they meet every limit of the grid but the raw steps' time-optimal bound.
 #[test]
 fn a_warm_motor_under_load_is_tracked_without_a_calibration() {
-    let cases = [
-        grid::Case::written(
-            3036,
-            3.826_731_512_831_131e-3,
-            -0.164_696_1,
-            grid::Motion::Step(-0.161_693_281_002_446_56),
-            "resistance=x1.2609925,torque-constant=x0.9191531,back-emf=x1.0788869,\
-             gear-inertia=x1.0506277,gear-friction=x0.5461984,supply=11.53132V,\
-             current-offset=-7.531683,current-gain=0.989165,pot-offset=1.2580514,\
-             link-inertia=x2.5034637",
-        ),
-        grid::Case::written(
-            2899,
-            4.718_697_349_228_44e-3,
-            -0.155_150_43,
-            grid::Motion::Step(-0.189_802_814_088_043_6),
-            "resistance=x1.3626714,torque-constant=x0.9791675,back-emf=x0.94297385,\
-             gear-inertia=x0.94111395,gear-friction=x2.5677128,supply=11.476497V,\
-             current-offset=4.2314444,current-gain=0.98891073,pot-offset=-2.8379714,\
-             link-inertia=x1.9253397",
-        ),
-        grid::Case::written(
-            1708,
-            4.173_540_305_260_402e-3,
-            -0.214_629_52,
-            grid::Motion::Move(-0.125_709_155_514_664_9, 178),
-            "resistance=x1.2066339,torque-constant=x0.9220406,back-emf=x0.9154322,\
-             gear-inertia=x0.8617622,gear-friction=x2.651448,supply=10.755288V,\
-             current-offset=-13.936805,current-gain=0.9563388,pot-offset=-1.7512501,\
-             link-inertia=x2.2714078",
-        ),
-    ];
-    assert_every_limit_but_the_time_bound(&cases);
+    assert_every_limit_but_the_time_bound(&grid::warm_motors_overshooting());
 }
 
 /// A raw step of a link about twice as heavy as configured braked at the deceleration
