@@ -203,10 +203,14 @@ fn without_a_calibration_a_warm_motor_is_tracked_as_far_as_the_offsets_tolerance
         }),
         Reply::Ok
     );
-    // The held current, about 0.25 A, may be 20 counts (0.0195 A) off without a
-    // calibration: R ×1.3 is configured as the nearest it allows, ×1.3·0.25/0.2695.
+    // The held current, about 0.25 A, may be 20 counts off without a calibration: R ×1.3
+    // is configured as the nearest it allows.
+    let nearest = 1.3 * 0.25 / (0.25 + 20.0 / 1024.0);
     let ratio = b.service.config().motor.resistance_ohm.to_num::<f64>() / configured;
-    assert!((ratio - 1.206).abs() < 0.02, "R ×{ratio} configured");
+    assert!(
+        (ratio - nearest).abs() < 0.02,
+        "R ×{ratio} configured, ×{nearest} expected"
+    );
     assert_eq!(report(&mut b).tracked_resistance_permille, None);
     for _ in 0..1500 {
         b.step();

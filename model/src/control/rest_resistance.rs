@@ -112,32 +112,42 @@ impl RestResistance {
         }
     }
 
+    /// Whether the window gives an estimate: at least [`WINDOW_TICKS`] long, its mean
+    /// current at least [`MIN_CURRENT_Q16`] and of the duty's sign.
+    fn usable(&self) -> bool {
+        self.ticks >= WINDOW_TICKS
+            && self.current_sum_q16.unsigned_abs()
+                >= MIN_CURRENT_Q16.unsigned_abs() * u64::from(self.ticks)
+            && (self.duty_sum > 0) == (self.current_sum_q16 > 0)
+    }
+
+    /// |Σduty|·V_s / (1000·`current_q16`), the window's duty over a positive current sum
+    /// (Q16), as I32F32 bits: V_s in Q32 and the current in Q16, so ·2¹⁶ gives Q32 bits.
+    /// |Σduty| ≤ 1000·2²⁰ < 2³⁰, V_s bits < 2³⁹: the numerator is below 2¹⁰⁰.
+    fn ohms(&self, supply_v: I32F32, current_q16: i128) -> i128 {
+        ((i128::from(self.duty_sum).abs() * i128::from(supply_v.to_bits())) << 16)
+            / (1000 * current_q16)
+    }
+
     /// R_eff, Ω, of a window of at least [`WINDOW_TICKS`] whose mean current is at least
     /// [`MIN_CURRENT_Q16`] and has the sign of the duty; `None` otherwise or when it does
     /// not fit I32F32.
     #[must_use]
     pub fn estimate(&self, supply_v: I32F32) -> Option<I32F32> {
-        if self.ticks < WINDOW_TICKS
-            || self.current_sum_q16.unsigned_abs()
-                < MIN_CURRENT_Q16.unsigned_abs() * u64::from(self.ticks)
-            || (self.duty_sum > 0) != (self.current_sum_q16 > 0)
-        {
+        if !self.usable() {
             return None;
         }
-        // R = Σduty·V_s / (1000·Σi): V_s in Q32 and Σi in Q16, so ·2¹⁶ gives Q32 bits.
-        // |Σduty| ≤ 1000·2²⁰ < 2³⁰, V_s bits < 2³⁹: the numerator is below 2¹⁰⁰.
-        let num = (i128::from(self.duty_sum) * i128::from(supply_v.to_bits())) << 16;
-        let den = 1000 * i128::from(self.current_sum_q16);
-        i64::try_from(num / den).ok().map(I32F32::from_bits)
+        let r = self.ohms(supply_v, i128::from(self.current_sum_q16).abs());
+        i64::try_from(r).ok().map(I32F32::from_bits)
     }
 
     /// The resistance to configure before the next command, when the window shows one
     /// that differs from `configured` by more than [`TOLERANCE_PERMILLE`]. With the current
     /// offset unknown within ±`offset_q16` (A Q16, [`UNCALIBRATED_OFFSET_Q16`] without a
-    /// calibration, 0 with one) the window allows R_eff between Σduty·V̂_s/(1000·(|Σi| +
-    /// n·δ)) and Σduty·V̂_s/(1000·(|Σi| − n·δ)) (unbounded above when n·δ ≥ |Σi|): `None`
-    /// while `configured` lies in that band, else its bound nearest `configured`, the
-    /// smallest correction the measurement asks for.
+    /// calibration, 0 with one: the band is then R_eff alone) the window allows R_eff
+    /// between Σduty·V̂_s/(1000·(|Σi| + n·δ)) and Σduty·V̂_s/(1000·(|Σi| − n·δ))
+    /// (unbounded above when n·δ ≥ |Σi|): `None` while `configured` lies in that band, else
+    /// its bound nearest `configured`, the smallest correction the measurement asks for.
     #[must_use]
     pub fn differs_from(
         &self,
@@ -145,23 +155,21 @@ impl RestResistance {
         configured: I32F32,
         offset_q16: i64,
     ) -> Option<I32F32> {
-        let r = self.estimate(supply_v)?;
+        if !self.usable() {
+            return None;
+        }
         let c = i128::from(configured.to_bits());
-        let r = if offset_q16 > 0 {
-            // Both sums have the duty's sign (`estimate`); |Σi| ≤ 2⁵¹, n·δ ≤ 2⁵⁰.
-            let n_off = i128::from(offset_q16) * i128::from(self.ticks);
-            let si = i128::from(self.current_sum_q16).abs();
-            let num = (i128::from(self.duty_sum).abs() * i128::from(supply_v.to_bits())) << 16;
-            let low = num / (1000 * (si + n_off));
-            if c < low {
-                low
-            } else if si > n_off && c > num / (1000 * (si - n_off)) {
-                num / (1000 * (si - n_off))
-            } else {
-                return None;
-            }
+        // Both sums have the duty's sign (`usable`); |Σi| ≤ 2⁵¹, n·δ ≤ 2⁵⁰.
+        let si = i128::from(self.current_sum_q16).abs();
+        let n_off = i128::from(offset_q16) * i128::from(self.ticks);
+        let low = self.ohms(supply_v, si + n_off);
+        let r = if c < low {
+            low
         } else {
-            i128::from(r.to_bits())
+            match (si > n_off).then(|| self.ohms(supply_v, si - n_off)) {
+                Some(high) if c > high => high,
+                _ => return None,
+            }
         };
         let diff = (r - c).abs() * 1000;
         let r = I32F32::from_bits(i64::try_from(r).ok()?);
