@@ -9,7 +9,10 @@
 //! * [`FloatController::step`] is `model::control::Controller::step` (encoder unwrapping,
 //!   back-EMF observer, blended torque estimate, reference, feed-forward (the two-mass
 //!   inverse for a sine, the gear's Coulomb friction), free-play and hysteresis
-//!   compensation, PID, current/duty window, braking governor, anti-windup);
+//!   compensation, PID, current/duty window, braking governor, anti-windup), all but the
+//!   catch of a floating link at rest (`model::control::catch`): it acts only without
+//!   load, and the benchmark and the comparison run loaded, where the fixed-point step
+//!   only tests whether the rest hold has begun;
 //! * [`FloatSupervisor::check`] is `model::supervisor::Supervisor::check` (every check, in
 //!   the same order, with the same latch);
 //! * [`FloatServo::tick`] is `model::servo::Servo::tick` (controller, supervisor, enable

@@ -283,6 +283,65 @@ pub fn light_loads_one_count_off() -> [Case; 3] {
     ]
 }
 
+/// Six grid cases without load whose link the loop left bouncing in the free play, 5–7
+/// counts of span over the last 500 ms and 3.6–5.7 counts off their target, before the catch
+/// stopped it there (docs/design.md §11, "Catching the floating link"): nominal seed 101
+/// #236, seed 102 #32 and #161 and seed 105 #211; off-nominal seed 1000110 #74 (a current
+/// offset of −19.8 counts) and seed 1000113 #209, written out in full.
+#[must_use]
+pub fn links_left_bouncing() -> [Case; 6] {
+    [
+        Case::written(
+            5755,
+            7.907_400_739_009_461e-4,
+            0.0,
+            Motion::Step(-0.566_638_230_893_132_5),
+            "",
+        ),
+        Case::written(
+            2587,
+            3.267_145_161_939_264_5e-4,
+            0.0,
+            Motion::Step(0.453_009_806_074_962_55),
+            "",
+        ),
+        Case::written(
+            5814,
+            1.048_643_602_131_986e-3,
+            0.0,
+            Motion::Move(-0.374_746_979_105_599_6, 166),
+            "",
+        ),
+        Case::written(
+            6628,
+            5.627_423_678_737_175e-4,
+            0.0,
+            Motion::Move(-0.275_830_205_503_065_8, 151),
+            "",
+        ),
+        Case::written(
+            5892,
+            1.245_359_689_999_703e-3,
+            0.0,
+            Motion::Move(0.546_605_095_860_506_1, 267),
+            "resistance=x0.98579127,torque-constant=x1.0157907,back-emf=x1.0533264,\
+             gear-inertia=x1.1594042,gear-friction=x1.0508827,supply=12.128983V,\
+             current-offset=-19.807835,current-gain=0.96463054,pot-offset=0.86784965,\
+             link-inertia=x1.1437494",
+        ),
+        Case::written(
+            2933,
+            1.125_609_456_414_271_2e-3,
+            0.0,
+            Motion::Step(-0.332_852_966_337_930_7),
+            "resistance=x0.8498032,torque-constant=x0.9225313,back-emf=x0.9515609,\
+             gear-inertia=x1.1964072,gear-friction=x0.5206647,supply=11.734964V,\
+             current-offset=10.483482,current-gain=1.041277,pot-offset=0.9867612,\
+             link-inertia=x0.6166407",
+        ),
+    ]
+}
+
 /// Three nominal grid cases under a light load (0.035…0.049 N·m) whose link the load held
 /// still on a wall just over a count off its target while the integrator wound past the
 /// gear's friction: settled at 2.29 / 1.64 / 3.87 times their limit before such a link

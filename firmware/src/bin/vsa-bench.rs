@@ -28,6 +28,9 @@
 //!   and `Servo::tick` (controller + supervisor; `model::calibration::pipeline`) → H-bridge
 //!   driver (`drivers::tick_io`, as the firmware's tick); the plant
 //!   excluded. `control_step_f32`: the same with the f32 port (`bench::float::FloatServo`).
+//! * `control_step_unloaded`: `control_step` in the same script without load, a second
+//!   pass (the other figures are the loaded pass's): the link floats in the free play at
+//!   rest, where the catch of a floating link (`model::control::catch`) has the output.
 //! * `controller`, `controller_f32`: `Controller::step` alone (a copy of the servo's
 //!   controller fed the same measurements), and its f32 port.
 //! * `capacity_check`: the per-tick beam capacity check |τ̂| ≤ τ_cap(L)
@@ -181,6 +184,7 @@ mod suite {
     /// The closed-loop benchmarks at each clutch length.
     pub fn closed_loop(cal: u32) {
         let mut step = Stat::new();
+        let mut step_unloaded = Stat::new();
         let mut step_f = Stat::new();
         let mut ctl_s = Stat::new();
         let mut ctl_f = Stat::new();
@@ -193,7 +197,14 @@ mod suite {
         let mut ticks: u32 = 0;
         let design = Design::paper();
         let mut buf = [0u8; MAX_TELEMETRY_FRAME];
-        for mm in 1..=5 {
+        // The script with the load, then without: a link floating in the free play at rest,
+        // where the catch (`model::control::catch`) has the output. The same code times
+        // both (one call site, one inlining); the other figures are the loaded pass's.
+        for (mm, load_nm) in (1..=5)
+            .map(|mm| (mm, 0.3))
+            .chain((1..=5).map(|mm| (mm, 0.0)))
+        {
+            let loaded = load_nm > 0.0;
             // As a board runs until a calibration confirms the clutch: the clutch taken
             // longer by the unconfirmed tolerance, the clutch monitor running.
             let mut config = Config::paper(Length::from_int(mm));
@@ -204,7 +215,7 @@ mod suite {
             };
             let mut fservo = FloatServo::new(&servo, &config);
             let mut scenario = Scenario::new(config, Command::Hold);
-            scenario.load_nm = 0.3;
+            scenario.load_nm = load_nm;
             let (Ok(mut plant), Ok(mut fplant)) = (plant_for(&scenario), plant_for(&scenario))
             else {
                 defmt::error!("bench: plant rejected at L = {=i32} mm", mm);
@@ -251,6 +262,11 @@ mod suite {
                     io.drive(out.bridge);
                     out
                 });
+                if !loaded {
+                    step_unloaded.add(c, cal);
+                    readings = plant.step_tick(io.applied_duty());
+                    continue;
+                }
                 step.add(c, cal);
                 let (fout, c) = time((&mut fio, &mut fservo), |(io, servo)| {
                     let input = io.read_inputs();
@@ -326,6 +342,7 @@ mod suite {
             }
         }
         step.log("control_step");
+        step_unloaded.log("control_step_unloaded");
         step_f.log("control_step_f32");
         ctl_s.log("controller");
         ctl_f.log("controller_f32");

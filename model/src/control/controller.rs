@@ -3,6 +3,7 @@
 
 use fixed::types::I32F32;
 
+use super::catch::{CatchHold, Rest};
 use super::config::Config;
 use super::creep::Creep;
 use super::error::ControlError;
@@ -157,6 +158,8 @@ pub struct Controller {
     limited: i8,
     /// The running move's drive sums and its r̈ feed-forward scale.
     move_drive: MoveDrive,
+    /// The catch of a floating link at rest.
+    catch: CatchHold,
 }
 
 impl Controller {
@@ -185,6 +188,7 @@ impl Controller {
             integ: 0,
             hunt: Hunt::NEW,
             creep: Creep::NEW,
+            catch: CatchHold::NEW,
             duty_prev: 0,
             defl_prev: 0,
             torque_error_lp: 0,
@@ -273,6 +277,7 @@ impl Controller {
         };
         self.ff = ff;
         self.commanded = true;
+        self.catch = CatchHold::NEW;
         Ok(())
     }
 
@@ -308,6 +313,7 @@ impl Controller {
         self.ff = FeedForward::rigid(&self.sched);
         self.move_drive = MoveDrive::NEW;
         self.commanded = true;
+        self.catch = CatchHold::NEW;
         Ok(())
     }
 
@@ -325,6 +331,7 @@ impl Controller {
         self.integ = 0;
         self.hunt = Hunt::NEW;
         self.creep = Creep::NEW;
+        self.catch = CatchHold::NEW;
         self.duty_prev = 0;
         self.defl_valid = false;
         self.theta_g_valid = false;
@@ -511,6 +518,26 @@ impl Controller {
             self.creep = Creep::NEW;
             (0, 0)
         };
+        // The catch of a floating link at rest (docs/design.md §11, "Catching the floating
+        // link"): while it has the output the loop's terms, its governor and its integrator
+        // rest, and so do their filters.
+        if stationary {
+            let rest = Rest {
+                load_abs,
+                e_abs,
+                e_q32,
+                tau,
+                delta,
+                w_gear,
+                hunting: self.hunt.hunting(),
+            };
+            if let Some(u) = self
+                .catch
+                .output(s, &mut self.integ, self.ff.vel, resting, rest)
+            {
+                return self.caught(u, w_gear, current, tau, r.position, theta_l);
+            }
+        }
         // The position loop acts on the gear: where the gear should be (the reference plus
         // the deflection the coupling needs) minus the gear estimate. The link enters it
         // below ω_o only, so the link's rattle in the free play does not drive the motor.
@@ -630,36 +657,7 @@ impl Controller {
             );
 
         // --- limits: current window about the back-EMF, duty limit ---
-        let emf = s.duty_per_w.apply(w_gear);
-        let di = s.i_win_duty_q16;
-        let dl = s.duty_lim_q16;
-        let (hi_i, lo_i) = (emf.saturating_add(di), emf.saturating_sub(di));
-        let (mut hi, mut lo) = (hi_i.min(dl), lo_i.max(-dl));
-        if lo > hi {
-            // Back-EMF beyond the supply: the least current the bridge can give.
-            let v = emf.clamp(-dl, dl);
-            hi = v;
-            lo = v;
-        }
-        // Free-play impacts: current that drives the gear across the free play beyond the
-        // impact speed would hit the link with more than τ_lim; above that relative speed
-        // no more current that way (the zero-current duty is the back-EMF's). Only where the
-        // beams carry torque now, on the side of τ̂, may the gear close on the link: a
-        // bouncing link leaves the wall it was pushed by, and the gear's next push would hit
-        // it. The bound carries the current-based estimate's error, which grows with |i|
-        // (design §11, "Free-play impacts").
-        let closing = w_gear.saturating_sub(self.w_link);
-        if closing.saturating_abs() > s.impact_speed_q16 {
-            let contact_bound = s
-                .contact_torque_q16
-                .saturating_add(s.contact_per_amp.apply(current.saturating_abs()));
-            let zero_current = emf.clamp(lo, hi);
-            if closing > 0 && tau <= contact_bound {
-                hi = hi.min(zero_current);
-            } else if closing < 0 && tau >= -contact_bound {
-                lo = lo.max(zero_current);
-            }
-        }
+        let win = Window::new(s, w_gear, self.w_link, current, tau);
         // Braking governor (raw steps and other jumps of a stationary reference): when
         // the gear approaches the target faster than the available deceleration a_b can
         // stop it, ω_g² > 2·a_b·|e|, brake at the limit now instead of when the linear
@@ -682,19 +680,9 @@ impl Controller {
                 u = if w_gear > 0 { i32::MIN } else { i32::MAX };
             }
         }
-        let sat_hi = u > hi;
-        let sat_lo = u < lo;
-        let uc = u.clamp(lo, hi);
-        // Clamped at the duty limit, by side: the flag, and the raw step's speed hold.
-        let (duty_hi, duty_lo) = (sat_hi && hi == dl, sat_lo && lo == -dl);
-        self.limited = i8::from(duty_hi) - i8::from(duty_lo);
-        let at_current = (sat_hi && hi == hi_i) || (sat_lo && lo == lo_i);
-        let flags = Flags {
-            torque_limited: (at_current && s.i_lim_from_beams)
-                || tau.saturating_abs() > s.tau_lim_q16,
-            current_limited: at_current && !s.i_lim_from_beams,
-            duty_saturated: duty_hi || duty_lo,
-        };
+        let c = win.clamp(s, u, tau);
+        self.limited = c.limited;
+        let (uc, sat_hi, sat_lo) = (c.uc, c.sat_hi, c.sat_lo);
 
         // --- integrator: not further into a clamp ---
         // Outside the reference's count it integrates K_i·e. Inside, the link error is
@@ -730,7 +718,7 @@ impl Controller {
             0 // integral separation: far from the target the P term saturates anyway
         };
         if inc != 0 && !((sat_hi && inc > 0) || (sat_lo && inc < 0)) {
-            let lim = q16_to_q32(dl);
+            let lim = q16_to_q32(s.duty_lim_q16);
             self.integ = self.integ.saturating_add(inc).clamp(-lim, lim);
         }
 
@@ -750,6 +738,46 @@ impl Controller {
                 self.ff.acc,
             );
         }
+        self.finish(
+            uc, c.flags, stationary, tau, r.position, theta_l, w_gear, current,
+        )
+    }
+
+    /// The step's end while the catch has the output `u` (‰ Q16): the same limits, flags
+    /// and output as the loop's. Out of line: the loop's ticks keep their code.
+    #[inline(never)]
+    fn caught(
+        &mut self,
+        u: i32,
+        w_gear: i32,
+        current: i32,
+        tau: i32,
+        reference: Angle,
+        theta_l: i64,
+    ) -> Output {
+        let win = Window::new(&self.sched, w_gear, self.w_link, current, tau);
+        let c = win.clamp(&self.sched, u, tau);
+        self.limited = c.limited;
+        self.finish(
+            c.uc, c.flags, true, tau, reference, theta_l, w_gear, current,
+        )
+    }
+
+    /// The duty of the clamped output `uc` (‰ Q16), the hunt's record of it, and the step's
+    /// output.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn finish(
+        &mut self,
+        uc: i32,
+        flags: Flags,
+        stationary: bool,
+        tau: i32,
+        reference: Angle,
+        theta_l: i64,
+        w_gear: i32,
+        current: i32,
+    ) -> Output {
         let duty = sat_i32((i64::from(uc) + 0x8000) >> 16).clamp(-1000, 1000) as i16;
         self.hunt.update(stationary, duty);
         self.duty_prev = duty;
@@ -757,13 +785,97 @@ impl Controller {
             duty,
             flags,
             torque_estimate: Torque::from_bits(q16_to_q32(tau)),
-            reference: r.position,
+            reference,
             link_angle: Angle::from_bits(theta_l),
             gear_velocity: I32F32::from_bits(q16_to_q32(w_gear)),
             link_velocity: I32F32::from_bits(q16_to_q32(self.w_link)),
             current: I32F32::from_bits(q16_to_q32(current)),
         }
     }
+}
+
+/// The output's window, ‰ Q16: the current window about the back-EMF (`hi_i`, `lo_i`)
+/// within the duty limit, narrowed against free-play impacts (`hi`, `lo`).
+struct Window {
+    hi: i32,
+    lo: i32,
+    hi_i: i32,
+    lo_i: i32,
+}
+
+impl Window {
+    /// The window for the gear speed `w_gear`, the link speed `w_link` (rad/s Q16), the
+    /// current (A Q16) and the torque estimate `tau` (N·m Q16).
+    #[inline(always)]
+    fn new(s: &Schedule, w_gear: i32, w_link: i32, current: i32, tau: i32) -> Window {
+        let emf = s.duty_per_w.apply(w_gear);
+        let di = s.i_win_duty_q16;
+        let dl = s.duty_lim_q16;
+        let (hi_i, lo_i) = (emf.saturating_add(di), emf.saturating_sub(di));
+        let (mut hi, mut lo) = (hi_i.min(dl), lo_i.max(-dl));
+        if lo > hi {
+            // Back-EMF beyond the supply: the least current the bridge can give.
+            let v = emf.clamp(-dl, dl);
+            hi = v;
+            lo = v;
+        }
+        // Free-play impacts: current that drives the gear across the free play beyond the
+        // impact speed would hit the link with more than τ_lim; above that relative speed
+        // no more current that way (the zero-current duty is the back-EMF's). Only where the
+        // beams carry torque now, on the side of τ̂, may the gear close on the link: a
+        // bouncing link leaves the wall it was pushed by, and the gear's next push would hit
+        // it. The bound carries the current-based estimate's error, which grows with |i|
+        // (design §11, "Free-play impacts").
+        let closing = w_gear.saturating_sub(w_link);
+        if closing.saturating_abs() > s.impact_speed_q16 {
+            let contact_bound = s
+                .contact_torque_q16
+                .saturating_add(s.contact_per_amp.apply(current.saturating_abs()));
+            let zero_current = emf.clamp(lo, hi);
+            if closing > 0 && tau <= contact_bound {
+                hi = hi.min(zero_current);
+            } else if closing < 0 && tau >= -contact_bound {
+                lo = lo.max(zero_current);
+            }
+        }
+        Window { hi, lo, hi_i, lo_i }
+    }
+
+    /// `u` (‰ Q16) clamped to the window, with the flags.
+    #[inline(always)]
+    fn clamp(&self, s: &Schedule, u: i32, tau: i32) -> Clamped {
+        let (hi, lo) = (self.hi, self.lo);
+        let sat_hi = u > hi;
+        let sat_lo = u < lo;
+        // Clamped at the duty limit, by side: the flag, and the raw step's speed hold.
+        let dl = s.duty_lim_q16;
+        let (duty_hi, duty_lo) = (sat_hi && hi == dl, sat_lo && lo == -dl);
+        let at_current = (sat_hi && hi == self.hi_i) || (sat_lo && lo == self.lo_i);
+        Clamped {
+            uc: u.clamp(lo, hi),
+            sat_hi,
+            sat_lo,
+            limited: i8::from(duty_hi) - i8::from(duty_lo),
+            flags: Flags {
+                torque_limited: (at_current && s.i_lim_from_beams)
+                    || tau.saturating_abs() > s.tau_lim_q16,
+                current_limited: at_current && !s.i_lim_from_beams,
+                duty_saturated: duty_hi || duty_lo,
+            },
+        }
+    }
+}
+
+/// An output clamped to its [`Window`].
+struct Clamped {
+    /// The output, ‰ Q16.
+    uc: i32,
+    /// Clamped from above, from below.
+    sat_hi: bool,
+    sat_lo: bool,
+    /// The side it was clamped at the duty limit (+1, −1, 0).
+    limited: i8,
+    flags: Flags,
 }
 
 /// The elastic deflection that carries the torque k·φ₀ through the beams' friction

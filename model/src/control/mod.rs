@@ -37,6 +37,7 @@
 //! ±32 768, resolution 1.5e-5), absolute angles and the integrator I32F32 `i64`; constants
 //! are [`Gain`]s. Every operation saturates.
 
+pub mod catch;
 pub mod config;
 pub mod controller;
 pub mod creep;

@@ -1,0 +1,516 @@
+//! Catching a floating link at its target (docs/design.md §11, "Catching the floating
+//! link").
+//!
+//! Without a load the link floats in the free play ±φ_b, and a still gear only bounces it
+//! from wall to wall (each bounce keeps about 0.65 of its speed). A wall that retreats at
+//! κ·v as a link moving at v meets it takes the link's speed instead. So at rest, once
+//! the link is seen to bounce, the gear's walls are located from the link's reversals
+//! and, when the encoder's edges show the link flying towards the target, the gear's front
+//! wall is sent to arrive at the target, moving at κ·v, when the link does: the link
+//! stops there.
+//!
+//! Everything is read from the link encoder's edges and the back-EMF observer, in encoder
+//! counts: positions in counts Q16 relative to the target, speeds in counts per tick Q16.
+
+use super::gain::{q16_to_q32, q32_to_q16, Gain, Q16_ONE};
+use super::schedule::Schedule;
+use crate::sensors::{turn_fraction_bits, ENCODER_COUNTS, ENCODER_HALF_COUNT_Q32};
+
+/// Wall speed at contact per link speed, κ, Q16 (0.4): 0.37 … 0.43 stopped as many links
+/// on the grid; 0.3 and 0.5 about 60 % as many (docs/design.md §11).
+pub const CATCH_KAPPA_Q16: i32 = 26_214;
+/// At most this many catches per rest: a link that two catches did not stop is left to
+/// the rest hold (more catches swung the duty in the rest without stopping more links).
+pub const CATCH_MAX: u8 = 2;
+/// The gear's position loop towards its planned wall, per tick (40 /s · 1 ms), Q16.
+const LAMBDA_Q16: i64 = 2_621;
+/// Depth of a reversal beyond the last edge, per (interval × speed): e/(1 + e) with the
+/// still gear's restitution e ≈ 0.65, Q16.
+const DEPTH_Q16: i64 = 25_821;
+/// A catch is planned only for a target at least this far ahead (0.3 count, Q16) …
+const MIN_AHEAD_Q16: i32 = 19_661;
+/// … and at least this many ticks away: time for the gear to get there.
+const MIN_TICKS: i32 = 40;
+/// The contact shows as the gear pushed beyond 1.3 times its speed plus this margin
+/// (0.004 rad/s in counts per tick, Q16).
+const CONTACT_MARGIN_Q16: i32 = 171;
+
+/// Ticks in a row, from the rest hold's start, that its conditions with less than a
+/// quarter of `REST_LOAD_NM` held must hold before the catch takes the output (60 ms after
+/// the hold's 20: an earlier hand-over came while a lightly loaded link settled, and
+/// delayed it; docs/design.md §11).
+pub const CATCH_TICKS: u16 = 60;
+/// Under the catch's damper, a gear that moves faster than this for `CATCH_LOAD_TICKS` is
+/// pushed by a load: the output goes back to the loop with its integrator (10 mrad/s,
+/// rad/s Q16).
+pub const CATCH_LOAD_SPEED_Q16: i32 = 655;
+/// See [`CATCH_LOAD_SPEED_Q16`].
+pub const CATCH_LOAD_TICKS: u16 = 30;
+/// A link that has not changed count for this many ticks while more than a count off is
+/// handed back to the loop (150 ms).
+pub const CATCH_STILL_TICKS: u32 = 150;
+/// One encoder count, rad Q16.
+const COUNT_RAD_Q16: i32 = (ENCODER_HALF_COUNT_Q32 >> 15) as i32;
+/// One encoder count per tick as a speed, rad/s Q16 (2π/4096 · 1000 = 1.534).
+const COUNT_PER_TICK_Q16: i64 = turn_fraction_bits(1000, ENCODER_COUNTS as u64, 16);
+/// rad/s → encoder counts per tick, Q16 (0.6519).
+const COUNTS_PER_TICK_PER_RAD_S_Q16: i64 = (1i64 << 32) / COUNT_PER_TICK_Q16;
+
+/// What the control step knows of the rest this tick.
+#[derive(Clone, Copy, Debug)]
+pub struct Rest {
+    /// |integrator|, ‰ Q16.
+    pub load_abs: i32,
+    /// |r − θ_l|, rad Q16.
+    pub e_abs: i32,
+    /// r − θ_l, rad Q32.
+    pub e_q32: i64,
+    /// Coupling torque estimate, N·m Q16.
+    pub tau: i32,
+    /// Link encoder count change this tick.
+    pub delta: i32,
+    /// Observer gear speed, rad/s Q16.
+    pub w_gear: i32,
+    /// The loop hunts at rest (`control::hunt`).
+    pub hunting: bool,
+}
+
+/// The hand-over between the loop and the catch.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CatchHold {
+    catch: Catch,
+    /// Ticks the conditions have held.
+    ticks: u16,
+    /// The catch has the output; the integrator it set aside, ‰ Q16 (the catch takes it
+    /// with less than a quarter of `REST_LOAD_NM` held).
+    active: bool,
+    integ: i32,
+    /// Ticks the gear has moved under the damper.
+    push: u16,
+    /// A load showed: no catch until the next command.
+    blocked: bool,
+}
+
+impl CatchHold {
+    /// The loop has the output.
+    pub const NEW: CatchHold = CatchHold {
+        catch: Catch::NEW,
+        ticks: 0,
+        active: false,
+        integ: 0,
+        push: 0,
+        blocked: false,
+    };
+
+    /// The output (‰ Q16) while the catch has it, `None` while the loop has it; called
+    /// while the reference stands still, `resting` once the rest hold has begun (the
+    /// controller starts the hand-over afresh with every command). It takes the output
+    /// once the rest hold's conditions, with less than a quarter of `REST_LOAD_NM` held
+    /// and the gear still, have held for [`CATCH_TICKS`] more: the integrator is set aside
+    /// and cleared, and the gear is a damper (duty 0: the back-EMF) except while a catch
+    /// runs, when it follows the catch's speed (velocity feed-forward `ff_vel`, the
+    /// configured Coulomb friction, K_d). A gear that keeps moving under the damper is
+    /// pushed by a load, and a link that stands still more than a count off is the loop's
+    /// to push: the loop gets the output back with its integrator until the next command.
+    /// Before the rest hold, a test of two flags here; the rest is out of line.
+    #[inline]
+    pub fn output(
+        &mut self,
+        s: &Schedule,
+        integ: &mut i64,
+        ff_vel: Gain,
+        resting: bool,
+        r: Rest,
+    ) -> Option<i32> {
+        if self.ticks == 0 && !resting {
+            return None;
+        }
+        self.take(s, integ, ff_vel, r)
+    }
+
+    #[inline(never)]
+    fn take(&mut self, s: &Schedule, integ: &mut i64, ff_vel: Gain, r: Rest) -> Option<i32> {
+        let eligible = r.load_abs < s.rest_load_q16 >> 2
+            && !r.hunting
+            && !self.blocked
+            && (self.active || r.w_gear.saturating_abs() < CATCH_LOAD_SPEED_Q16)
+            && r.e_abs <= 2 * s.rest_zone_q16
+            && r.tau.saturating_abs() < s.rest_torque_q16;
+        self.ticks = if eligible {
+            self.ticks.saturating_add(1)
+        } else {
+            0
+        };
+        if self.ticks < CATCH_TICKS {
+            self.active = false;
+            return None;
+        }
+        if !self.active {
+            self.active = true;
+            self.catch = Catch::NEW;
+            self.integ = q32_to_q16(*integ);
+            self.push = 0;
+            *integ = 0;
+        }
+        // |ω| < 2³¹ (rad/s Q16) times 0.65·2¹⁶: within i64.
+        let w_counts = ((i64::from(r.w_gear) * COUNTS_PER_TICK_PER_RAD_S_Q16) >> 16) as i32;
+        // The target less the link's count centre, and the free play 2·φ_b, in counts Q16:
+        // rad Q16 × counts per rad (the zone bounds the first, the schedule the second).
+        let target = ((r.e_q32 >> 16) * COUNTS_PER_TICK_PER_RAD_S_Q16 * 1000) >> 16;
+        let gap = (i64::from(s.free_play_q16) * 2 * COUNTS_PER_TICK_PER_RAD_S_Q16 * 1000) >> 16;
+        let w = self
+            .catch
+            .step(r.delta, target as i32, w_counts, gap as i32);
+        // A link that stands still more than a count off is the loop's to push (the creep,
+        // a light load's hold): it gets the output back with its integrator.
+        if w == 0 && self.catch.quiet() > CATCH_STILL_TICKS && r.e_abs > COUNT_RAD_Q16 {
+            *integ = q16_to_q32(self.integ);
+            self.blocked = true;
+            self.active = false;
+            return None;
+        }
+        if w == 0 {
+            self.push = if r.w_gear.saturating_abs() > CATCH_LOAD_SPEED_Q16 {
+                self.push.saturating_add(1)
+            } else {
+                0
+            };
+            if self.push > CATCH_LOAD_TICKS {
+                *integ = q16_to_q32(self.integ);
+                self.blocked = true;
+                self.active = false;
+                return None;
+            }
+            return Some(0);
+        }
+        // counts per tick → rad/s, Q16.
+        let w_rad = ((i64::from(w) * COUNT_PER_TICK_Q16) >> 16) as i32;
+        let friction = if w > 0 {
+            s.coulomb_duty_q16
+        } else {
+            -s.coulomb_duty_q16
+        };
+        Some(
+            ff_vel
+                .apply(w_rad)
+                .saturating_add(friction)
+                .saturating_add(s.kd.apply(w_rad.saturating_sub(r.w_gear))),
+        )
+    }
+}
+
+/// The catch's state during one rest.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Catch {
+    /// Ticks since the rest began.
+    tick: u32,
+    /// Gear displacement since then, counts Q16 (the observer integrated).
+    gear: i32,
+    /// Direction of the link's last count change, ±1 (0 none yet).
+    dir: i8,
+    /// Tick of the last count change.
+    last_edge: u32,
+    /// Ticks between the last two count changes of the current flight.
+    interval: u32,
+    /// Speed of the current flight, counts per tick Q16 (0: not measured yet).
+    speed: i32,
+    /// Count changes since the last reversal.
+    edges: u8,
+    /// The lower wall at zero gear displacement, counts Q16 (valid once `known`).
+    wall_lo: i32,
+    known: bool,
+    /// Planned gear displacement, counts Q16, and the wall's speed at contact.
+    goal: i32,
+    wall_speed: i32,
+    /// Direction of the catch under way (0: none).
+    plan: i8,
+    /// A catch ended: no new one until the link is seen flying again.
+    settled: bool,
+    /// Planned length and last tick of the catch, and whether the contact showed.
+    length: u32,
+    end: u32,
+    contact: bool,
+    /// Catches this rest.
+    catches: u8,
+}
+
+impl Catch {
+    /// A rest that has just begun.
+    pub const NEW: Catch = Catch {
+        tick: 0,
+        gear: 0,
+        dir: 0,
+        last_edge: 0,
+        interval: 0,
+        speed: 0,
+        edges: 0,
+        wall_lo: 0,
+        known: false,
+        goal: 0,
+        wall_speed: 0,
+        plan: 0,
+        settled: false,
+        length: 0,
+        end: 0,
+        contact: false,
+        catches: 0,
+    };
+
+    /// One tick of a rest. `delta`: the link encoder's count change; `target`: the target
+    /// less the link's count centre, counts Q16; `w_gear`: the observer's gear speed in
+    /// counts per tick Q16; `gap`: the free play 2·φ_b in counts Q16. Returns the gear's
+    /// speed reference, counts per tick Q16 (0: no catch under way).
+    #[inline(never)]
+    pub fn step(&mut self, delta: i32, target: i32, w_gear: i32, gap: i32) -> i32 {
+        self.tick = self.tick.wrapping_add(1);
+        self.gear = self.gear.saturating_add(w_gear);
+        if delta != 0 {
+            self.edge(delta, target, gap);
+        }
+        if self.plan != 0 {
+            self.watch(w_gear);
+        }
+        if self.plan == 0 {
+            return 0;
+        }
+        self.goal = self.goal.saturating_add(self.wall_speed);
+        let pull = ((i64::from(self.goal) - i64::from(self.gear)) * LAMBDA_Q16) >> 16;
+        let w = i64::from(self.wall_speed) + pull;
+        // Never faster than the link its way (the rear wall would hit it), at most twice
+        // its speed back.
+        let ahead = i64::from(self.speed) * 9 / 10;
+        let back = 2 * i64::from(self.speed);
+        let w = if self.plan > 0 {
+            w.clamp(-back, ahead)
+        } else {
+            w.clamp(-ahead, back)
+        };
+        w as i32 // |w| ≤ 2·speed ≤ 2·Q16_ONE
+    }
+
+    /// A count change: a reversal locates a wall, two changes the same way time a flight,
+    /// and a flight towards the target plans a catch.
+    fn edge(&mut self, delta: i32, target: i32, gap: i32) {
+        let d: i8 = if delta > 0 { 1 } else { -1 };
+        // The boundary crossed, relative to the target: from below it is the count's lower
+        // edge, from above its upper one (the count centre is `target` below the target).
+        let half = Q16_ONE / 2;
+        let boundary = if d > 0 { -half } else { half }.saturating_sub(target);
+        let since = self.tick.wrapping_sub(self.last_edge).max(1);
+        if self.dir != 0 && d != self.dir {
+            // Reversed inside the count beyond the last boundary: at a wall.
+            let vin = if self.speed > 0 {
+                i64::from(self.speed)
+            } else {
+                i64::from(Q16_ONE) / i64::from(since)
+            };
+            let depth = ((i64::from(since) * vin * DEPTH_Q16) >> 16).clamp(0, i64::from(Q16_ONE));
+            let wall = boundary.saturating_add(i32::from(self.dir) * depth as i32);
+            self.wall_lo = if self.dir > 0 {
+                wall.saturating_sub(gap).saturating_sub(self.gear)
+            } else {
+                wall.saturating_sub(self.gear)
+            };
+            self.known = true;
+            self.edges = 1;
+            self.speed = 0;
+            self.plan = 0;
+            self.settled = false;
+        } else {
+            self.edges = self.edges.saturating_add(1);
+            if self.edges >= 2 {
+                self.settled = false;
+                self.interval = since;
+                self.speed = Q16_ONE / i32::try_from(since).unwrap_or(i32::MAX);
+            }
+        }
+        self.dir = d;
+        self.last_edge = self.tick;
+        if !self.known || self.speed == 0 || self.plan != 0 || self.settled {
+            return;
+        }
+        if self.catches >= CATCH_MAX {
+            return;
+        }
+        let front = if d > 0 {
+            self.wall_lo.saturating_add(gap)
+        } else {
+            self.wall_lo
+        }
+        .saturating_add(self.gear);
+        let ahead = boundary.saturating_neg().saturating_mul(i32::from(d));
+        if ahead <= MIN_AHEAD_Q16 {
+            return;
+        }
+        let ticks = ahead / self.speed;
+        if ticks <= MIN_TICKS {
+            return;
+        }
+        // The front wall at the target when the link gets there, moving at κ·v: it is
+        // κ·v·ticks short of the target now, and its goal moves with it.
+        let w = ((i64::from(self.speed) * i64::from(CATCH_KAPPA_Q16)) >> 16) as i32 * i32::from(d);
+        self.wall_speed = w;
+        self.goal = self
+            .gear
+            .saturating_sub(w.saturating_mul(ticks))
+            .saturating_sub(front);
+        self.plan = d;
+        self.catches += 1;
+        self.length = (ticks as u32) * 5 / 4;
+        self.end = self.tick.wrapping_add(self.length + 10);
+        self.contact = false;
+    }
+
+    /// Ticks since the link's count last changed.
+    #[must_use]
+    pub const fn quiet(&self) -> u32 {
+        self.tick.wrapping_sub(self.last_edge)
+    }
+
+    /// The catch under way: it ends a few ticks after the contact shows in the observer
+    /// (the link pushes the gear beyond its speed), when the link has stopped (no count
+    /// change for three intervals), or a quarter late.
+    fn watch(&mut self, w_gear: i32) {
+        if !self.contact {
+            let early = self.end.wrapping_sub(self.length / 2 + 10);
+            let pushed = w_gear.saturating_mul(i32::from(self.plan));
+            let bound =
+                self.wall_speed.saturating_abs().saturating_mul(13) / 10 + CONTACT_MARGIN_Q16;
+            if self.tick >= early && pushed > bound {
+                self.contact = true;
+                self.end = self.tick.wrapping_add(2);
+            }
+        }
+        let quiet = self.tick.wrapping_sub(self.last_edge);
+        if quiet > 3 * self.interval + 10 || self.tick >= self.end {
+            self.plan = 0;
+            self.settled = true;
+            self.edges = 0;
+            self.speed = 0;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const COUNT: i32 = Q16_ONE;
+    /// The free play of the paper preset, 2·5.128 mrad, in counts Q16 (6.686 counts).
+    const GAP: i32 = 438_170;
+
+    /// `n` ticks of a still link and a still gear.
+    fn wait(c: &mut Catch, n: u32, target: i32) -> i32 {
+        let mut w = 0;
+        for _ in 0..n {
+            w = c.step(0, target, 0, GAP);
+        }
+        w
+    }
+
+    #[test]
+    fn a_still_link_is_left_alone() {
+        let mut c = Catch::NEW;
+        assert_eq!(wait(&mut c, 500, COUNT / 4), 0);
+        assert!(!c.known);
+    }
+
+    /// A link flying up at one count per 20 ticks, 2.5 counts above its target, bounces
+    /// off the gear's upper wall and comes back down at one count per 25 ticks: the wall is
+    /// placed from the reversal, and the flight towards the target plans a catch whose
+    /// front (lower) wall reaches the target, moving down at κ·v, when the link does.
+    /// Expected values computed here from the geometry, in floating point.
+    #[test]
+    fn a_bounce_locates_the_walls_and_a_flight_towards_the_target_is_caught() {
+        let q = f64::from(COUNT);
+        let mut c = Catch::NEW;
+        // `target`: the target less the link's count centre (counts Q16).
+        let mut target = -5 * COUNT / 2;
+        wait(&mut c, 19, target);
+        target -= COUNT;
+        c.step(1, target, 0, GAP); // up across 3 counts above the target
+        wait(&mut c, 19, target);
+        target -= COUNT;
+        c.step(1, target, 0, GAP); // up across 4 counts
+        assert_eq!(c.speed, COUNT / 20);
+        // Reverses inside the count and comes back down across 4 counts, 10 ticks later.
+        wait(&mut c, 9, target);
+        target += COUNT;
+        c.step(-1, target, 0, GAP);
+        assert!(c.known);
+        // Upper wall: 4 counts + 10 ticks × 1/20 count per tick × e/(1 + e), e = 0.65.
+        let wall_hi = 4.0 + 10.0 / 20.0 * 0.65 / 1.65;
+        let got = f64::from(c.wall_lo + GAP) / q;
+        assert!((got - wall_hi).abs() < 1e-3, "{got} vs {wall_hi}");
+        // Down across 3 counts 25 ticks later: 1/25 count per tick, 75 ticks from the target.
+        wait(&mut c, 24, target);
+        target += COUNT;
+        let w = c.step(-1, target, 0, GAP);
+        assert_eq!(c.speed, COUNT / 25);
+        assert_eq!(c.plan, -1);
+        let v = 1.0 / 25.0;
+        let wall_speed = -0.4 * v;
+        assert!((f64::from(c.wall_speed) / q - wall_speed).abs() < 1e-4);
+        // The lower wall, now at wall_hi − 6.686 counts, must be at the target less
+        // κ·v·75 ticks (moving down at κ·v it gets there with the link): the gear goes up
+        // by the difference, first at the clamp of twice the link's speed.
+        let lower = wall_hi - f64::from(GAP) / q;
+        let goal = -wall_speed * 75.0 - lower;
+        let got = f64::from(c.goal - c.wall_speed) / q;
+        assert!((got - goal).abs() < 2e-3, "{got} vs {goal}");
+        assert_eq!(
+            w,
+            2 * c.speed,
+            "clamped at twice the link's speed towards it"
+        );
+        // Fed its own speed (a perfect servo), the gear's lower wall is at the target when
+        // the link gets there, 75 ticks on, moving down.
+        let mut w = w;
+        for _ in 0..74 {
+            w = c.step(0, target, w, GAP);
+        }
+        // Within the target's count (the position loop's lag leaves 0.2 count).
+        let wall = f64::from(c.gear) / q + lower;
+        assert!(wall.abs() < 0.5, "the wall {wall} counts from the target");
+        assert!(w < 0, "{w}");
+    }
+
+    #[test]
+    fn a_catch_ends_when_the_gear_is_pushed() {
+        let mut c = Catch::NEW;
+        c.known = true;
+        c.plan = 1;
+        c.speed = COUNT / 20;
+        c.interval = 20;
+        c.wall_speed = COUNT / 50;
+        c.length = 100;
+        c.end = 110;
+        c.tick = 60;
+        c.last_edge = 60;
+        // Below 1.3 × the wall's speed: not a contact.
+        c.step(0, 0, COUNT / 50 * 12 / 10, GAP);
+        assert_eq!(c.plan, 1);
+        // Pushed to twice the wall's speed: the contact, and the catch ends two ticks later.
+        c.step(0, 0, COUNT / 25, GAP);
+        assert!(c.contact);
+        c.step(0, 0, 0, GAP);
+        assert_eq!(c.plan, 1);
+        c.step(0, 0, 0, GAP);
+        assert_eq!(c.plan, 0);
+        assert!(c.settled);
+    }
+
+    #[test]
+    fn no_more_than_two_catches_a_rest() {
+        let mut c = Catch::NEW;
+        c.catches = CATCH_MAX;
+        c.known = true;
+        c.dir = -1;
+        c.edges = 1;
+        c.speed = COUNT / 25;
+        c.last_edge = 0;
+        c.tick = 25;
+        c.step(-1, -4 * COUNT, 0, GAP);
+        assert_eq!(c.plan, 0);
+    }
+}
