@@ -24,7 +24,10 @@
 //!    error against a gear-angle estimate (the observer integrated, pulled towards the
 //!    link below ω_c/3), so that the link's rattle in the gap does not drive the motor,
 //!    and near the target or in motion the loop runs at ω_c/2; at rest without load a
-//!    still link more than a count off the target is pushed there at a crawl ([`creep`]);
+//!    still link more than a count off the target is pushed there at a crawl ([`creep`]),
+//!    and a link bouncing in the free play is caught at the target by the gear's wall
+//!    moving ahead of it ([`catch`], which then has the output instead of steps 6–9's
+//!    terms; the window of step 9 stays);
 //! 8. braking governor for stationary references (ω_g² > 2·a_b·|e|);
 //! 9. clamps: current window about the back-EMF, beam-derived torque limit, duty limit,
 //!    with anti-windup.
