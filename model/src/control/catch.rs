@@ -513,4 +513,118 @@ mod tests {
         c.step(-1, -4 * COUNT, 0, GAP);
         assert_eq!(c.plan, 0);
     }
+
+    /// The paper preset's schedule at L = 3 mm.
+    fn schedule() -> Schedule {
+        use crate::control::Config;
+        use crate::{Design, Length};
+        Schedule::new(&Design::paper(), &Config::paper(Length::from_int(3))).unwrap()
+    }
+
+    /// A still link at its target, the gear still, with `load` (‰ Q16) in the integrator.
+    fn at_rest(load: i32) -> Rest {
+        Rest {
+            load_abs: load.abs(),
+            e_abs: 0,
+            e_q32: 0,
+            tau: 0,
+            delta: 0,
+            w_gear: 0,
+            hunting: false,
+        }
+    }
+
+    /// 10 ‰ in the integrator, I32F32 bits.
+    const INTEG: i64 = 10 << 32;
+
+    #[test]
+    fn the_catch_takes_the_output_after_catch_ticks_of_the_rest_hold() {
+        let s = schedule();
+        let (mut h, mut integ) = (CatchHold::NEW, INTEG);
+        let load = s.rest_load_q16 / 8;
+        // Before the rest hold has begun nothing counts.
+        for _ in 0..100 {
+            assert_eq!(h.output(&s, &mut integ, s.kd, false, at_rest(load)), None);
+        }
+        for _ in 1..CATCH_TICKS {
+            assert_eq!(h.output(&s, &mut integ, s.kd, true, at_rest(load)), None);
+            assert_eq!(integ, INTEG);
+        }
+        // The damper: duty 0, the integrator set aside.
+        assert_eq!(h.output(&s, &mut integ, s.kd, true, at_rest(load)), Some(0));
+        assert_eq!(integ, 0);
+        assert_eq!(q16_to_q32(h.integ), INTEG);
+    }
+
+    #[test]
+    fn a_held_load_or_a_moving_gear_keeps_the_output_with_the_loop() {
+        let s = schedule();
+        let mut integ = INTEG;
+        // A quarter of `REST_LOAD_NM` and more in the integrator.
+        let mut h = CatchHold::NEW;
+        for _ in 0..500 {
+            let r = at_rest(s.rest_load_q16 / 4);
+            assert_eq!(h.output(&s, &mut integ, s.kd, true, r), None);
+        }
+        // The gear moving at the load speed when the hand-over would come.
+        let mut h = CatchHold::NEW;
+        for _ in 0..500 {
+            let r = Rest {
+                w_gear: CATCH_LOAD_SPEED_Q16,
+                ..at_rest(0)
+            };
+            assert_eq!(h.output(&s, &mut integ, s.kd, true, r), None);
+        }
+        assert_eq!(integ, INTEG);
+    }
+
+    #[test]
+    fn a_gear_pushed_under_the_damper_gives_the_loop_back_its_integrator() {
+        let s = schedule();
+        let (mut h, mut integ) = (CatchHold::NEW, INTEG);
+        for _ in 0..CATCH_TICKS {
+            h.output(&s, &mut integ, s.kd, true, at_rest(0));
+        }
+        assert_eq!(integ, 0);
+        // The gear moves faster than the load speed under the damper, the link with it.
+        let pushed = Rest {
+            w_gear: 2 * CATCH_LOAD_SPEED_Q16,
+            ..at_rest(0)
+        };
+        for _ in 0..CATCH_LOAD_TICKS {
+            assert_eq!(h.output(&s, &mut integ, s.kd, true, pushed), Some(0));
+        }
+        assert_eq!(h.output(&s, &mut integ, s.kd, true, pushed), None);
+        assert_eq!(integ, INTEG);
+        // No catch again until the next command (which starts a new `CatchHold`).
+        for _ in 0..500 {
+            assert_eq!(h.output(&s, &mut integ, s.kd, true, at_rest(0)), None);
+        }
+        assert_eq!(integ, INTEG);
+    }
+
+    #[test]
+    fn a_still_link_more_than_a_count_off_goes_back_to_the_loop() {
+        let s = schedule();
+        let (mut h, mut integ) = (CatchHold::NEW, INTEG);
+        // 1.5 counts off the target, inside the zone, still.
+        let off = Rest {
+            e_abs: 3 * COUNT_RAD_Q16 / 2,
+            e_q32: i64::from(3 * COUNT_RAD_Q16 / 2) << 16,
+            ..at_rest(0)
+        };
+        for _ in 0..CATCH_TICKS {
+            h.output(&s, &mut integ, s.kd, true, off);
+        }
+        assert_eq!(integ, 0);
+        let mut ticks = 0;
+        while h.output(&s, &mut integ, s.kd, true, off).is_some() {
+            ticks += 1;
+            assert!(ticks < 1000, "never handed back");
+        }
+        // The catch had the output for `CATCH_STILL_TICKS` ticks, the one that took it
+        // included, and gives it back on the next.
+        assert_eq!(ticks + 1, CATCH_STILL_TICKS);
+        assert_eq!(integ, INTEG);
+    }
 }
