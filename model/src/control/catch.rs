@@ -34,6 +34,10 @@ const MIN_TICKS: i32 = 40;
 /// The contact shows as the gear pushed beyond 1.3 times its speed plus this margin
 /// (0.004 rad/s in counts per tick, Q16).
 const CONTACT_MARGIN_Q16: i32 = 171;
+/// The catch goes on this many ticks after its contact shows (40 ms): a heavy link's
+/// contact lasts some 20 ms, and a gear left to the damper two ticks into it stopped under
+/// the link and gave it back most of its speed (docs/design.md §11).
+const CONTACT_TICKS: u32 = 40;
 
 /// Ticks in a row, from the rest hold's start, that its conditions with less than a
 /// quarter of `REST_LOAD_NM` held must hold before the catch takes the output (60 ms after
@@ -367,9 +371,9 @@ impl Catch {
         self.tick.wrapping_sub(self.last_edge)
     }
 
-    /// The catch under way: it ends a few ticks after the contact shows in the observer
-    /// (the link pushes the gear beyond its speed), when the link has stopped (no count
-    /// change for three intervals), or a quarter late.
+    /// The catch under way: it ends [`CONTACT_TICKS`] after the contact shows in the
+    /// observer (the link pushes the gear beyond its speed), when the link has stopped (no
+    /// count change for three intervals), or a quarter late.
     fn watch(&mut self, w_gear: i32) {
         if !self.contact {
             let early = self.end.wrapping_sub(self.length / 2 + 10);
@@ -378,7 +382,7 @@ impl Catch {
                 self.wall_speed.saturating_abs().saturating_mul(13) / 10 + CONTACT_MARGIN_Q16;
             if self.tick >= early && pushed > bound {
                 self.contact = true;
-                self.end = self.tick.wrapping_add(2);
+                self.end = self.tick.wrapping_add(CONTACT_TICKS);
             }
         }
         let quiet = self.tick.wrapping_sub(self.last_edge);
@@ -490,11 +494,14 @@ mod tests {
         // Below 1.3 × the wall's speed: not a contact.
         c.step(0, 0, COUNT / 50 * 12 / 10, GAP);
         assert_eq!(c.plan, 1);
-        // Pushed to twice the wall's speed: the contact, and the catch ends two ticks later.
+        // Pushed to twice the wall's speed: the contact, and the catch ends `CONTACT_TICKS`
+        // later (before the link's three intervals of quiet would end it, at tick 131).
         c.step(0, 0, COUNT / 25, GAP);
         assert!(c.contact);
-        c.step(0, 0, 0, GAP);
-        assert_eq!(c.plan, 1);
+        for _ in 1..CONTACT_TICKS {
+            c.step(0, 0, 0, GAP);
+            assert_eq!(c.plan, 1);
+        }
         c.step(0, 0, 0, GAP);
         assert_eq!(c.plan, 0);
         assert!(c.settled);
