@@ -2,12 +2,12 @@
 //! link").
 //!
 //! Without a load the link floats in the free play ±φ_b, and a still gear only bounces it
-//! from wall to wall (each bounce keeps about 0.65 of its speed). A wall that retreats at
-//! κ·v as a link moving at v meets it takes the link's speed instead. So at rest, once
-//! the link is seen to bounce, the gear's walls are located from the link's reversals
-//! and, when the encoder's edges show the link flying towards the target, the gear's front
-//! wall is sent to arrive at the target, moving at κ·v, when the link does: the link
-//! stops there.
+//! from wall to wall (each bounce keeps 0.65 of its speed or more, a heavy link's nearly
+//! all). A wall that retreats at κ·v as a link moving at v meets it takes the link's speed
+//! instead. So at rest, once the link is seen to bounce, the gear's walls are located from
+//! the link's reversals and, when the encoder's edges show the link flying towards the
+//! target, the gear's front wall is sent to arrive at the target, moving at κ·v, when the
+//! link does, so that the link stops there.
 //!
 //! Everything is read from the link encoder's edges and the back-EMF observer, in encoder
 //! counts: positions in counts Q16 relative to the target, speeds in counts per tick Q16.
