@@ -12,9 +12,10 @@
 //! Everything is read from the link encoder's edges and the back-EMF observer, in encoder
 //! counts: positions in counts Q16 relative to the target, speeds in counts per tick Q16.
 
+use super::controller::COUNT_PER_TICK_Q16;
 use super::gain::{q16_to_q32, q32_to_q16, Gain, Q16_ONE};
 use super::schedule::Schedule;
-use crate::sensors::{turn_fraction_bits, ENCODER_COUNTS, ENCODER_HALF_COUNT_Q32};
+use crate::sensors::ENCODER_HALF_COUNT_Q32;
 
 /// Wall speed at contact per link speed, κ, Q16 (0.4): 0.37 … 0.43 stopped as many links
 /// on the grid; 0.3 and 0.5 about 60 % as many (docs/design.md §11).
@@ -55,10 +56,10 @@ pub const CATCH_LOAD_TICKS: u16 = 30;
 pub const CATCH_STILL_TICKS: u32 = 150;
 /// One encoder count, rad Q16.
 const COUNT_RAD_Q16: i32 = (ENCODER_HALF_COUNT_Q32 >> 15) as i32;
-/// One encoder count per tick as a speed, rad/s Q16 (2π/4096 · 1000 = 1.534).
-const COUNT_PER_TICK_Q16: i64 = turn_fraction_bits(1000, ENCODER_COUNTS as u64, 16);
-/// rad/s → encoder counts per tick, Q16 (0.6519).
-const COUNTS_PER_TICK_PER_RAD_S_Q16: i64 = (1i64 << 32) / COUNT_PER_TICK_Q16;
+/// rad/s → encoder counts per tick, Q16 (0.6519): the inverse of `COUNT_PER_TICK_Q16`.
+const COUNTS_PER_TICK_PER_RAD_S_Q16: i64 = (1i64 << 32) / COUNT_PER_TICK_Q16 as i64;
+/// rad → encoder counts, Q16 (651.9): 1000 ticks a second.
+const COUNTS_PER_RAD_Q16: i64 = COUNTS_PER_TICK_PER_RAD_S_Q16 * 1000;
 
 /// What the control step knows of the rest this tick.
 #[derive(Clone, Copy, Debug)]
@@ -160,18 +161,15 @@ impl CatchHold {
         let w_counts = ((i64::from(r.w_gear) * COUNTS_PER_TICK_PER_RAD_S_Q16) >> 16) as i32;
         // The target less the link's count centre, and the free play 2·φ_b, in counts Q16:
         // rad Q16 × counts per rad (the zone bounds the first, the schedule the second).
-        let target = ((r.e_q32 >> 16) * COUNTS_PER_TICK_PER_RAD_S_Q16 * 1000) >> 16;
-        let gap = (i64::from(s.free_play_q16) * 2 * COUNTS_PER_TICK_PER_RAD_S_Q16 * 1000) >> 16;
+        let target = ((r.e_q32 >> 16) * COUNTS_PER_RAD_Q16) >> 16;
+        let gap = (i64::from(s.free_play_q16) * 2 * COUNTS_PER_RAD_Q16) >> 16;
         let w = self
             .catch
             .step(r.delta, target as i32, w_counts, gap as i32);
         // A link that stands still more than a count off is the loop's to push (the creep,
         // a light load's hold): it gets the output back with its integrator.
         if w == 0 && self.catch.quiet() > CATCH_STILL_TICKS && r.e_abs > COUNT_RAD_Q16 {
-            *integ = q16_to_q32(self.integ);
-            self.blocked = true;
-            self.active = false;
-            return None;
+            return self.give_back(integ);
         }
         if w == 0 {
             self.push = if r.w_gear.saturating_abs() > CATCH_LOAD_SPEED_Q16 {
@@ -180,15 +178,12 @@ impl CatchHold {
                 0
             };
             if self.push > CATCH_LOAD_TICKS {
-                *integ = q16_to_q32(self.integ);
-                self.blocked = true;
-                self.active = false;
-                return None;
+                return self.give_back(integ);
             }
             return Some(0);
         }
         // counts per tick → rad/s, Q16.
-        let w_rad = ((i64::from(w) * COUNT_PER_TICK_Q16) >> 16) as i32;
+        let w_rad = ((i64::from(w) * i64::from(COUNT_PER_TICK_Q16)) >> 16) as i32;
         let friction = if w > 0 {
             s.coulomb_duty_q16
         } else {
@@ -200,6 +195,15 @@ impl CatchHold {
                 .saturating_add(friction)
                 .saturating_add(s.kd.apply(w_rad.saturating_sub(r.w_gear))),
         )
+    }
+
+    /// The loop gets the output back with the integrator set aside, until the next
+    /// command.
+    fn give_back(&mut self, integ: &mut i64) -> Option<i32> {
+        *integ = q16_to_q32(self.integ);
+        self.blocked = true;
+        self.active = false;
+        None
     }
 }
 

@@ -23,7 +23,8 @@ use crate::units::{Angle, Torque};
 
 /// One encoder count per tick (1000 ticks/s) as a velocity, 2π/4096 rad · 1000 /s, Q16
 /// (1.534 rad/s).
-const COUNT_PER_TICK_Q16: i32 = turn_fraction_bits(1000, ENCODER_COUNTS as u64, 16) as i32;
+pub(super) const COUNT_PER_TICK_Q16: i32 =
+    turn_fraction_bits(1000, ENCODER_COUNTS as u64, 16) as i32;
 /// Ticks in a row the rest hold's conditions must hold before it starts (20 ms).
 const REST_TICKS: u8 = 20;
 /// ADC counts → A in Q16: 1024 counts/A, so ×64.
@@ -681,7 +682,6 @@ impl Controller {
             }
         }
         let c = win.clamp(s, u, tau);
-        self.limited = c.limited;
         let (uc, sat_hi, sat_lo) = (c.uc, c.sat_hi, c.sat_lo);
 
         // --- integrator: not further into a clamp ---
@@ -738,9 +738,7 @@ impl Controller {
                 self.ff.acc,
             );
         }
-        self.finish(
-            uc, c.flags, stationary, tau, r.position, theta_l, w_gear, current,
-        )
+        self.finish(&c, stationary, tau, r.position, theta_l, w_gear, current)
     }
 
     /// The step's end while the catch has the output `u` (‰ Q16): the same limits, flags
@@ -757,20 +755,16 @@ impl Controller {
     ) -> Output {
         let win = Window::new(&self.sched, w_gear, self.w_link, current, tau);
         let c = win.clamp(&self.sched, u, tau);
-        self.limited = c.limited;
-        self.finish(
-            c.uc, c.flags, true, tau, reference, theta_l, w_gear, current,
-        )
+        self.finish(&c, true, tau, reference, theta_l, w_gear, current)
     }
 
-    /// The duty of the clamped output `uc` (‰ Q16), the hunt's record of it, and the step's
-    /// output.
+    /// The clamped output's duty, the side it met the duty limit on (the raw step's speed
+    /// hold reads it next tick), the hunt's record of the duty, and the step's output.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn finish(
         &mut self,
-        uc: i32,
-        flags: Flags,
+        c: &Clamped,
         stationary: bool,
         tau: i32,
         reference: Angle,
@@ -778,12 +772,13 @@ impl Controller {
         w_gear: i32,
         current: i32,
     ) -> Output {
-        let duty = sat_i32((i64::from(uc) + 0x8000) >> 16).clamp(-1000, 1000) as i16;
+        self.limited = c.limited;
+        let duty = sat_i32((i64::from(c.uc) + 0x8000) >> 16).clamp(-1000, 1000) as i16;
         self.hunt.update(stationary, duty);
         self.duty_prev = duty;
         Output {
             duty,
-            flags,
+            flags: c.flags,
             torque_estimate: Torque::from_bits(q16_to_q32(tau)),
             reference,
             link_angle: Angle::from_bits(theta_l),
