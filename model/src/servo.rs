@@ -346,6 +346,16 @@ impl Servo {
         Ok(())
     }
 
+    /// After [`Servo::tick`], outside the control step: the running move's velocity
+    /// feed-forward scale takes the tick's observer velocity, current and gear travel
+    /// ([`crate::control::Controller::track_speed`]; only while the bridge drove). The
+    /// service calls it after each tick, as it keeps the rest resistance's window.
+    pub fn track_speed(&mut self, out: &TickOutput) {
+        if out.bridge.drives() {
+            self.controller.track_speed(&out.control);
+        }
+    }
+
     /// The configuration to prepare when the armature resistance a still, held link under
     /// load showed (`window`, kept by the caller after each tick: [`RestResistance::tick`])
     /// differs from the configured one by more than its tolerance: the one in force with

@@ -638,6 +638,7 @@ where
             rec.on_command(true_angle, fx32(target.to_bits()), measured);
         }
         window.tick(out.bridge.drives(), &out.control);
+        servo.track_speed(&out);
         let (cmd, duty) = (bridge_command(out.bridge), out.bridge.duty());
         readings = plant.step_tick_cmd(cmd);
         let st = plant.state();

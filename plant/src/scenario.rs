@@ -938,6 +938,8 @@ pub fn run_on_host_with_plant<F: FnMut(&ScenarioEvent)>(
                 read_error: None,
             },
         );
+        // The board's service takes the tick after it (`Actuator::after_tick`).
+        servo.track_speed(&out);
         let late = if overrun {
             servo.deadline_missed(0)
         } else {

@@ -294,6 +294,7 @@ impl Actuator {
         self.link_velocity = out.control.link_velocity.to_bits();
         self.torque = out.control.torque_estimate.to_bits();
         self.rest_resistance.tick(out.bridge.drives(), &out.control);
+        self.servo.track_speed(out);
         let seq = self.telemetry.due()?;
         Some((seq, self.sample(input, out)))
     }

@@ -34,7 +34,7 @@ use plant::scenario::ScenarioId;
 pub const BENCH_SHIFT: u32 = 7;
 
 /// The benchmarks `vsa-bench` logs, with their row labels.
-pub const BENCHES: [(&str, &str); 13] = [
+pub const BENCHES: [(&str, &str); 14] = [
     (
         "control_step",
         "control step: sensors → servo (controller + supervisor) → H-bridge",
@@ -54,6 +54,10 @@ pub const BENCHES: [(&str, &str); 13] = [
     (
         "capacity_check",
         "capacity check \\|τ̂\\| ≤ τ_cap (`Setting::within_capacity`)",
+    ),
+    (
+        "speed_tracker",
+        "speed tracker after the tick (`Servo::track_speed`)",
     ),
     (
         "telemetry",

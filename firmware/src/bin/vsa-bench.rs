@@ -35,6 +35,9 @@
 //!   controller fed the same measurements), and its f32 port.
 //! * `capacity_check`: the per-tick beam capacity check |τ̂| ≤ τ_cap(L)
 //!   (`Setting::within_capacity` on the torque estimate).
+//! * `speed_tracker`: after each loaded tick, outside the control step (the service's
+//!   per-tick work on a board): `Servo::track_speed`, the velocity feed-forward scale of a
+//!   loaded move (`model::control::speed_scale`).
 //! * `telemetry`: `protocol::encode_telemetry` of a sample built from the tick's output
 //!   (postcard + CRC-32 + COBS into a frame buffer).
 //!
@@ -189,6 +192,7 @@ mod suite {
         let mut ctl_s = Stat::new();
         let mut ctl_f = Stat::new();
         let mut cap = Stat::new();
+        let mut speed = Stat::new();
         let mut tel = Stat::new();
         let mut worst_duty_diff: i32 = 0;
         let mut sum_duty_diff: u64 = 0;
@@ -264,10 +268,13 @@ mod suite {
                 });
                 if !loaded {
                     step_unloaded.add(c, cal);
+                    servo.track_speed(&out);
                     readings = plant.step_tick(io.applied_duty());
                     continue;
                 }
                 step.add(c, cal);
+                let (_, c) = time((&mut servo, &out), |(servo, out)| servo.track_speed(out));
+                speed.add(c, cal);
                 let (fout, c) = time((&mut fio, &mut fservo), |(io, servo)| {
                     let input = io.read_inputs();
                     let out = servo.tick(&input);
@@ -347,6 +354,7 @@ mod suite {
         ctl_s.log("controller");
         ctl_f.log("controller_f32");
         cap.log("capacity_check");
+        speed.log("speed_tracker");
         tel.log("telemetry");
         defmt::println!(
             "RESULT f32_agreement ticks={=u32} duty_diff_mean_permille={=f32} duty_diff_max_permille={=i32} link_angle_diff_max_urad={=u32} faults={=u32}",

@@ -13,6 +13,7 @@ use super::move_drive::MoveDrive;
 use super::move_duration;
 use super::schedule::{Schedule, HELD_DAMPING_DEADBAND_SHIFT, TICKS_PER_S};
 use super::sine_feedforward::FeedForward;
+use super::speed_scale::SpeedScale;
 use super::trajectory::{Command, Reference, Trajectory};
 use crate::design::Design;
 use crate::sensors::{
@@ -159,6 +160,8 @@ pub struct Controller {
     limited: i8,
     /// The running move's drive sums and its r̈ feed-forward scale.
     move_drive: MoveDrive,
+    /// The running move's velocity feed-forward scale.
+    speed_scale: SpeedScale,
     /// The catch of a floating link at rest.
     catch: CatchHold,
 }
@@ -201,6 +204,7 @@ impl Controller {
             w_bias: 0,
             rest_ticks: 0,
             move_drive: MoveDrive::NEW,
+            speed_scale: SpeedScale::NEW,
         })
     }
 
@@ -276,6 +280,15 @@ impl Controller {
             Command::Move { target, .. } => MoveDrive::start(from, target.to_bits()),
             _ => MoveDrive::NEW,
         };
+        // ... and its velocity feed-forward's scale, for a loaded link (design §11, "The
+        // velocity feed-forward for the actuator a move meets").
+        self.speed_scale = match cmd {
+            Command::Move { .. } => SpeedScale::start(
+                self.gear_position(),
+                q32_to_q16(self.integ).saturating_abs() >= self.sched.float_load_q16,
+            ),
+            _ => SpeedScale::NEW,
+        };
         self.ff = ff;
         self.commanded = true;
         self.catch = CatchHold::NEW;
@@ -313,6 +326,7 @@ impl Controller {
         self.traj.command(Command::Step { target })?;
         self.ff = FeedForward::rigid(&self.sched);
         self.move_drive = MoveDrive::NEW;
+        self.speed_scale = SpeedScale::NEW;
         self.commanded = true;
         self.catch = CatchHold::NEW;
         Ok(())
@@ -341,6 +355,33 @@ impl Controller {
         self.torque_error_lp = 0;
         self.limited = 0;
         self.move_drive = MoveDrive::NEW;
+        self.speed_scale = SpeedScale::NEW;
+    }
+
+    /// After [`Controller::step`], outside the control step (the service's per-tick work,
+    /// as the rest resistance's window): a loaded move's observer velocity, current and
+    /// gear travel for its velocity feed-forward's scale (design §11, "The velocity
+    /// feed-forward for the actuator a move meets"). `out` is that step's output.
+    pub fn track_speed(&mut self, out: &Output) {
+        let r = self.traj.reference();
+        if r.velocity_q16 == 0 && r.acceleration_q16 == 0 {
+            self.speed_scale.stop();
+        }
+        self.speed_scale.take(
+            q32_to_q16(out.gear_velocity.to_bits()),
+            q32_to_q16(out.current.to_bits()),
+            out.link_angle
+                .to_bits()
+                .saturating_add(q16_to_q32(self.defl_prev)),
+        );
+    }
+
+    /// The gear's place as the feed-forward plans it: the link's measured count plus the
+    /// deflection of the last tick (I32F32 rad).
+    fn gear_position(&self) -> i64 {
+        (2 * i64::from(self.n_link) + 1)
+            .saturating_mul(ENCODER_HALF_COUNT_Q32)
+            .saturating_add(q16_to_q32(self.defl_prev))
     }
 
     /// One 1 kHz control step. Total: no panics, saturating arithmetic throughout.
@@ -556,7 +597,8 @@ impl Controller {
             .saturating_add(s.alpha.apply(r.velocity_q16.saturating_sub(self.w_ref)));
 
         // --- feed-forward: trajectory, then free play and compliance ---
-        let u_vel = self.ff.vel.apply(r.velocity_q16);
+        // ṙ's feed-forward as the move's actuator needs it: scaled for its back-EMF and supply.
+        let u_vel = self.speed_scale.apply(self.ff.vel.apply(r.velocity_q16));
         // r̈ as the move's actuator needs it: scaled for the drive its acceleration took.
         let accel = self.move_drive.apply(r.acceleration_q16);
         let u_acc = self.ff.acc.apply(accel);

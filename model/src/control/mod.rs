@@ -11,7 +11,9 @@
 //!    pot's deflection-based estimate by inverse variance;
 //! 4. reference r, ṙ, r̈ from [`trajectory`] (a raw step along the near-time-optimal
 //!    profile of [`dash`]; a move no shorter than the limits allow, [`move_duration`]);
-//!    a move's r̈ feed-forward scaled for the actuator it meets ([`move_drive`]);
+//!    a move's r̈ feed-forward scaled for the actuator it meets ([`move_drive`]), and its
+//!    ṙ feed-forward for the observer's scale against the gear's travel ([`speed_scale`],
+//!    fitted after each tick by `Controller::track_speed`);
 //! 5. error e = r − θ_l, zero while r lies in the measured encoder count;
 //! 6. feed-forward of the rigid inverse model (the two-mass inverse for a sine,
 //!    [`sine_feedforward`]), plus the free-play and compliance
@@ -55,6 +57,7 @@ pub mod rest_resistance;
 pub mod schedule;
 pub mod sine;
 pub mod sine_feedforward;
+pub mod speed_scale;
 pub mod trajectory;
 pub mod validate;
 mod wide;
