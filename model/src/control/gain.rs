@@ -24,6 +24,18 @@ pub(crate) const fn sat_i32(v: i64) -> i32 {
     }
 }
 
+/// `x` (Q16) times a Q16 `scale` (|scale| < 2³¹, so the product fits i64), saturated; `x`
+/// itself at a scale of 1 (the feed-forward scales of a move: `move_drive`, `speed_scale`).
+#[inline(always)]
+#[must_use]
+pub(crate) fn scale_q16(x: i32, scale: i32) -> i32 {
+    if scale == Q16_ONE {
+        x
+    } else {
+        sat_i32((i64::from(x) * i64::from(scale)) >> 16)
+    }
+}
+
 /// Q32 (I32F32 bits) → Q16, rounding toward −∞, saturating.
 #[inline]
 pub(crate) const fn q32_to_q16(v: i64) -> i32 {

@@ -83,12 +83,7 @@ impl MoveDrive {
     #[inline(always)]
     #[must_use]
     pub fn apply(&self, x: i32) -> i32 {
-        if self.scale == Q16_ONE {
-            x
-        } else {
-            // |x| < 2³¹, scale ≤ 2¹⁸: the product fits i64, the result saturates.
-            super::gain::sat_i32((i64::from(x) * i64::from(self.scale)) >> 16)
-        }
+        super::gain::scale_q16(x, self.scale)
     }
 
     /// Takes one tick of a loaded link's drive: `actual` the output's acceleration part
