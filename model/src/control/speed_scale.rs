@@ -18,8 +18,9 @@
 //! windows of `WINDOW` ticks it sums O = Σω̂, I = Σi and takes D = 1000·Δθ_g (rad/s·ticks,
 //! like O), and fits O = s·D + c·I by least squares over the windows so far. Once the gear
 //! has travelled `MIN_TRAVEL` and `MIN_WINDOWS` windows are in, the velocity feed-forward
-//! is scaled by s, clamped to [`SCALE_MIN`, `SCALE_MAX`]. Per tick two adds; per window five
-//! 32×32→64-bit products and a 2×2 solve with one 32-bit division, out of line.
+//! is scaled by s, clamped to [`SCALE_MIN`, `SCALE_MAX`]. It runs after the control step
+//! (`Controller::track_speed`, the service's per-tick work): per tick two adds, per window
+//! five 32×32→64-bit products and a 2×2 solve with one 32-bit division.
 //!
 //! Formats: ω̂ Q16 rad/s, i Q16 A, angles I32F32 rad bits, the scale Q16.
 
@@ -39,7 +40,7 @@ pub const SCALE_MIN: i32 = 55_706; // 0.85
 /// See [`SCALE_MIN`].
 pub const SCALE_MAX: i32 = 81_920; // 1.25
 /// Per-window values are shifted right by this before the products (|D|, |O| < 2²⁴ for
-/// 20 rad/s, 2¹⁴ after it), so each product is below 2²⁸.
+/// 20 rad/s, 2¹⁴ after it), so each product is at most 2²⁸.
 const VALUE_SHIFT: u32 = 10;
 /// When a sum passes this, all five are halved (the older windows then weigh half as
 /// much): they stay within `i32`, so the fit's products are single 32×32→64-bit multiplies.
@@ -130,7 +131,7 @@ impl SpeedScale {
         self.cur = 0;
         self.start = gear;
         self.windows = self.windows.saturating_add(1);
-        // |d|, |o|, |i| < 2¹⁴ (20 rad/s, 2 A): each product < 2²⁸, each sum < 2³⁰ + 2²⁸.
+        // |d|, |o|, |i| ≤ 2¹⁴ (20 rad/s, 2 A): each product ≤ 2²⁸, each sum ≤ 2³⁰ + 2²⁸.
         for (s, p) in self
             .sums
             .iter_mut()
@@ -152,8 +153,8 @@ impl SpeedScale {
 
     /// s = (ΣOD·ΣI² − ΣOI·ΣDI)/(ΣD²·ΣI² − ΣDI²), Q16, where the determinant is at least
     /// 1/16 of ΣD²·ΣI² (travel and current not too alike to tell apart); `None` otherwise.
-    /// The sums are first brought below 2³⁰ by one common shift, so the products fit i64;
-    /// the quotient is one 32-bit division of 16-bit operands.
+    /// The sums are `i32`, so each product is one 32×32→64-bit multiply (below 2⁶²); the
+    /// quotient is one 32-bit division of 16-bit operands.
     fn fit(&self) -> Option<i32> {
         let w = |x: i32| i64::from(x);
         let [dd, di, ii, od, oi] = self.sums.map(w);
