@@ -284,7 +284,7 @@ impl Controller {
         // velocity feed-forward for the actuator a move meets").
         self.speed_scale = match cmd {
             Command::Move { .. } => SpeedScale::start(
-                self.gear_position(),
+                self.gear_at(self.link_angle()),
                 q32_to_q16(self.integ).saturating_abs() >= self.sched.float_load_q16,
             ),
             _ => SpeedScale::NEW,
@@ -363,25 +363,26 @@ impl Controller {
     /// gear travel for its velocity feed-forward's scale (design §11, "The velocity
     /// feed-forward for the actuator a move meets"). `out` is that step's output.
     pub fn track_speed(&mut self, out: &Output) {
-        let r = self.traj.reference();
-        if r.velocity_q16 == 0 && r.acceleration_q16 == 0 {
+        if self.traj.reference().stationary() {
             self.speed_scale.stop();
         }
         self.speed_scale.take(
             q32_to_q16(out.gear_velocity.to_bits()),
             q32_to_q16(out.current.to_bits()),
-            out.link_angle
-                .to_bits()
-                .saturating_add(q16_to_q32(self.defl_prev)),
+            self.gear_at(out.link_angle.to_bits()),
         );
     }
 
-    /// The gear's place as the feed-forward plans it: the link's measured count plus the
+    /// The link angle at the centre of its measured (unwrapped) count, I32F32 rad.
+    #[inline]
+    fn link_angle(&self) -> i64 {
+        (2 * i64::from(self.n_link) + 1).saturating_mul(ENCODER_HALF_COUNT_Q32)
+    }
+
+    /// The gear's place as the feed-forward plans it with the link at `link`: plus the
     /// deflection of the last tick (I32F32 rad).
-    fn gear_position(&self) -> i64 {
-        (2 * i64::from(self.n_link) + 1)
-            .saturating_mul(ENCODER_HALF_COUNT_Q32)
-            .saturating_add(q16_to_q32(self.defl_prev))
+    fn gear_at(&self, link: i64) -> i64 {
+        link.saturating_add(q16_to_q32(self.defl_prev))
     }
 
     /// One 1 kHz control step. Total: no panics, saturating arithmetic throughout.
@@ -400,7 +401,7 @@ impl Controller {
         };
         self.enc_prev = m.link_encoder;
         self.n_link = self.n_link.saturating_add(delta);
-        let theta_l = (2 * i64::from(self.n_link) + 1).saturating_mul(ENCODER_HALF_COUNT_Q32);
+        let theta_l = self.link_angle();
         if !self.started {
             self.started = true;
             if !self.commanded {
@@ -467,7 +468,7 @@ impl Controller {
         // The integrator's duty (‰ Q16), once: it is updated at the end of the tick.
         let u_i = q32_to_q16(self.integ);
         let load_abs = u_i.saturating_abs();
-        let stationary = r.velocity_q16 == 0 && r.acceleration_q16 == 0;
+        let stationary = r.stationary();
 
         // --- gear angle: complementary filter of the observer and the link encoder ---
         // The link at the point of its measured count nearest the reference (the encoder

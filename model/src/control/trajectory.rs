@@ -121,6 +121,16 @@ pub struct Reference {
     pub acceleration_q16: i32,
 }
 
+impl Reference {
+    /// The reference stands still (no speed, no acceleration): a hold, or a step's target
+    /// reached.
+    #[inline]
+    #[must_use]
+    pub const fn stationary(&self) -> bool {
+        self.velocity_q16 == 0 && self.acceleration_q16 == 0
+    }
+}
+
 /// `(a·b) >> 32` (rounded toward −∞), saturated to `i64`: the Q32 product.
 ///
 /// The Horner chains multiply by τ ∈ [0, 1] (Q32, so `b` < 2³² but for the last ticks of
