@@ -124,7 +124,7 @@ fn a_board_without_a_reading_yet_is_asked_again() {
     let (stdout, err) = (text(&out.stdout), text(&out.stderr));
     assert_eq!(out.status.code(), Some(0), "{err}");
     let first = stdout.lines().nth(1).unwrap_or_default();
-    assert_eq!(first, "1\t0\t512\t2048\t0", "{stdout}");
+    assert_eq!(first, "1\t0\t512\t2048\t0\t-", "{stdout}");
 }
 
 /// One that never gets a reading is one error line, after a bounded wait.
@@ -140,7 +140,7 @@ fn a_board_that_never_has_a_reading_is_one_error_line() {
     );
     assert_eq!(
         text(&out.stdout),
-        "tick\tlink_encoder\tgear_pot\tcurrent_adc\tnudge_permille\n"
+        "tick\tlink_encoder\tgear_pot\tcurrent_adc\tnudge_permille\tsupply_adc\n"
     );
 }
 

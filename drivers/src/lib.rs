@@ -60,6 +60,17 @@ pub trait CurrentSensor {
     fn read_raw(&mut self) -> Result<u16, SensorError>;
 }
 
+/// The H-bridge supply sense: a divider into an ADC, read once per control tick
+/// (`model::sensors::SUPPLY_MV_PER_COUNT`). Advisory: a failed read leaves the tick's
+/// reading out, and the configured supply stays in force (`model::control::supply_window`).
+pub trait SupplySensor {
+    /// The latest raw ADC conversion, `0..=4095` for a 12-bit ADC.
+    ///
+    /// # Errors
+    /// [`SensorError`] when no conversion is available.
+    fn read_raw(&mut self) -> Result<u16, SensorError>;
+}
+
 /// What the H-bridge is doing.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

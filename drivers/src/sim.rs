@@ -9,7 +9,9 @@ use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
 use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
 
 use crate::tick_io::TickIo;
-use crate::{AngleSensor, BridgeError, CurrentSensor, HBridge, SensorError, DUTY_FULL_SCALE};
+use crate::{
+    AngleSensor, BridgeError, CurrentSensor, HBridge, SensorError, SupplySensor, DUTY_FULL_SCALE,
+};
 
 /// A PWM channel that remembers its duty, in ‰ of the period (max duty
 /// [`DUTY_FULL_SCALE`] = 1000).
@@ -92,34 +94,50 @@ impl<const FULL: u16> CurrentSensor for SimChannel<FULL> {
     }
 }
 
+impl<const FULL: u16> SupplySensor for SimChannel<FULL> {
+    fn read_raw(&mut self) -> Result<u16, SensorError> {
+        Ok(self.value)
+    }
+}
+
 /// The H-bridge on simulated lines.
 pub type SimBridge = HBridge<SimPwm, SimPin, SimPin>;
 
-/// A tick's I/O on simulated channels of `LINK`, `POT` and `CURRENT` counts full scale and
-/// a simulated H-bridge: what the emulated boards and the benchmark run the control step on.
-pub type SimTickIo<const LINK: u16, const POT: u16, const CURRENT: u16> =
-    TickIo<SimChannel<LINK>, SimChannel<POT>, SimChannel<CURRENT>, SimPwm, SimPin, SimPin>;
+/// A tick's I/O on simulated channels of `LINK`, `POT` and `ADC` counts full scale (the
+/// current and the supply sense share the ADC) and a simulated H-bridge: what the emulated
+/// boards and the benchmark run the control step on.
+pub type SimTickIo<const LINK: u16, const POT: u16, const ADC: u16> = TickIo<
+    SimChannel<LINK>,
+    SimChannel<POT>,
+    SimChannel<ADC>,
+    SimChannel<ADC>,
+    SimPwm,
+    SimPin,
+    SimPin,
+>;
 
-impl<const LINK: u16, const POT: u16, const CURRENT: u16> SimTickIo<LINK, POT, CURRENT> {
-    /// All lines low, the sensors presenting `link`, `pot` and `current` counts.
+impl<const LINK: u16, const POT: u16, const ADC: u16> SimTickIo<LINK, POT, ADC> {
+    /// All lines low, the sensors presenting `link`, `pot`, `current` and `supply` counts.
     ///
     /// # Errors
     /// Only if the bridge driver refused the lines, which cannot happen: they are
     /// infallible.
-    pub fn simulated(link: u16, pot: u16, current: u16) -> Result<Self, BridgeError> {
+    pub fn simulated(link: u16, pot: u16, current: u16, supply: u16) -> Result<Self, BridgeError> {
         let bridge = HBridge::new(SimPwm::default(), SimPin::default(), SimPin::default())?;
         Ok(TickIo::new(
             SimChannel { value: link },
             SimChannel { value: pot },
             SimChannel { value: current },
+            SimChannel { value: supply },
             bridge,
         ))
     }
 
     /// Presents this tick's readings to the sensors.
-    pub fn present(&mut self, link: u16, pot: u16, current: u16) {
+    pub fn present(&mut self, link: u16, pot: u16, current: u16, supply: u16) {
         self.link.value = link;
         self.pot.value = pot;
         self.current.value = current;
+        self.supply.value = supply;
     }
 }

@@ -1,12 +1,13 @@
 //! The actuator I/O of one control tick, the same on every board and in the benchmark:
-//! the three sensors read through the driver traits into the servo's input
+//! the sensors read through the driver traits into the servo's input
 //! ([`TickIo::read_inputs`]) and the servo's demand put on the H-bridge
 //! ([`TickIo::drive`]).
 //!
 //! Its two safety rules (tested on the host, `tests/tick_io.rs`):
 //! - a failed read keeps the sensor's last good value and names the sensor in
 //!   `TickInput::read_error`, so the supervisor sees the failure and the controller never a
-//!   made-up reading;
+//!   made-up reading; the supply sense is advisory: a failed read gives no reading
+//!   (`TickInput::supply_adc` is `None`) and no fault;
 //! - the bridge is off whenever the servo says so ([`BridgeDemand::Off`]), and after any
 //!   driver error (counted in [`TickIo::bridge_errors`]); a brake
 //!   ([`BridgeDemand::Brake`], the fault reaction) never turns on a bridge that is off.
@@ -17,50 +18,62 @@ use model::sensors::ADC_MID;
 use model::servo::{BridgeDemand, TickInput};
 use model::supervisor::Sensor;
 
-use crate::{AngleSensor, BridgeState, CurrentSensor, HBridge};
+use crate::{AngleSensor, BridgeState, CurrentSensor, HBridge, SupplySensor};
 
 /// The sensors and the H-bridge of one actuator, with what the last tick read.
-pub struct TickIo<Link, Pot, Current, Pwm, Dir, En> {
+pub struct TickIo<Link, Pot, Current, Supply, Pwm, Dir, En> {
     /// Link-side angle sensor (magnetic encoder).
     pub link: Link,
     /// Gear-side angle sensor (potentiometer).
     pub pot: Pot,
     /// Motor current sensor.
     pub current: Current,
+    /// H-bridge supply sense.
+    pub supply: Supply,
     /// The H-bridge.
     pub bridge: HBridge<Pwm, Dir, En>,
     last: TickInput,
     bridge_errors: u32,
 }
 
-impl<Link, Pot, Current, Pwm, Dir, En> TickIo<Link, Pot, Current, Pwm, Dir, En>
+impl<Link, Pot, Current, Supply, Pwm, Dir, En> TickIo<Link, Pot, Current, Supply, Pwm, Dir, En>
 where
     Link: AngleSensor,
     Pot: AngleSensor,
     Current: CurrentSensor,
+    Supply: SupplySensor,
     Pwm: SetDutyCycle,
     Dir: OutputPin,
     En: OutputPin,
 {
     /// The actuator's I/O; until the first good read the servo sees the link at 0, no
-    /// gear pot and zero current (`ADC_MID`).
-    pub fn new(link: Link, pot: Pot, current: Current, bridge: HBridge<Pwm, Dir, En>) -> Self {
+    /// gear pot, zero current (`ADC_MID`) and no supply reading.
+    pub fn new(
+        link: Link,
+        pot: Pot,
+        current: Current,
+        supply: Supply,
+        bridge: HBridge<Pwm, Dir, En>,
+    ) -> Self {
         Self {
             link,
             pot,
             current,
+            supply,
             bridge,
             last: TickInput {
                 link_encoder: 0,
                 gear_pot: None,
                 current_adc: ADC_MID,
+                supply_adc: None,
                 read_error: None,
             },
             bridge_errors: 0,
         }
     }
 
-    /// Reads the three sensors; a failed read keeps the last value and is reported.
+    /// Reads the sensors; a failed read keeps the last value and is reported (the supply
+    /// sense's gives no reading).
     pub fn read_inputs(&mut self) -> TickInput {
         let mut input = self.last;
         input.read_error = None;
@@ -76,6 +89,7 @@ where
             Ok(v) => input.current_adc = v,
             Err(_) => input.read_error = Some(Sensor::CurrentAdc),
         }
+        input.supply_adc = self.supply.read_raw().ok();
         self.last = input;
         input
     }

@@ -5,7 +5,7 @@
 mod common;
 
 use drivers::tick_io::TickIo;
-use drivers::{AngleSensor, BridgeState, CurrentSensor, SensorError};
+use drivers::{AngleSensor, BridgeState, CurrentSensor, SensorError, SupplySensor};
 use embedded_hal_mock::eh1::digital::{Mock as PinMock, State, Transaction as Pin};
 use embedded_hal_mock::eh1::pwm::{Mock as PwmMock, Transaction as Pwm};
 use embedded_hal_mock::eh1::MockError;
@@ -41,24 +41,31 @@ impl CurrentSensor for Scripted {
     }
 }
 
-type Io = TickIo<Scripted, Scripted, Scripted, PwmMock, PinMock, PinMock>;
+impl SupplySensor for Scripted {
+    fn read_raw(&mut self) -> Result<u16, SensorError> {
+        self.next()
+    }
+}
+
+type Io = TickIo<Scripted, Scripted, Scripted, Scripted, PwmMock, PinMock, PinMock>;
 
 /// The timer's auto-reload of the mocked PWM.
 const MAX: u16 = 1000;
 
 /// Tick I/O whose bridge expects its `new` transactions, then the given ones.
 fn io(
-    sensors: [&[Result<u16, SensorError>]; 3],
+    sensors: [&[Result<u16, SensorError>]; 4],
     pwm_after: &[Pwm],
     dir_after: &[Pin],
     en_after: &[Pin],
 ) -> Io {
     let bridge = common::bridge(pwm_after, dir_after, en_after);
-    let [link, pot, current] = sensors;
+    let [link, pot, current, supply] = sensors;
     TickIo::new(
         Scripted::new(link),
         Scripted::new(pot),
         Scripted::new(current),
+        Scripted::new(supply),
         bridge,
     )
 }
@@ -77,6 +84,7 @@ fn a_failed_read_keeps_the_last_value_and_names_the_sensor() {
             &[Ok(100), LOST, Ok(300), Ok(400)],
             &[Ok(500), Ok(510), LOST, Ok(530)],
             &[Ok(2000), Ok(2100), Ok(2200), LOST],
+            &[Ok(2400), Ok(2401), Ok(2402), Ok(2403)],
         ],
         &[],
         &[],
@@ -117,12 +125,44 @@ fn a_failed_read_keeps_the_last_value_and_names_the_sensor() {
 }
 
 #[test]
+fn a_failed_supply_read_gives_no_reading_and_no_fault() {
+    let mut io = io(
+        [
+            &[Ok(100), Ok(101), Ok(102)],
+            &[Ok(500), Ok(501), Ok(502)],
+            &[Ok(2000), Ok(2001), Ok(2002)],
+            &[Ok(2400), LOST, Ok(2100)],
+        ],
+        &[],
+        &[],
+        &[],
+    );
+    let first = io.read_inputs();
+    assert_eq!((first.supply_adc, first.read_error), (Some(2400), None));
+    let second = io.read_inputs();
+    assert_eq!(
+        (second.supply_adc, second.read_error),
+        (None, None),
+        "a lost supply reading is left out, not kept and not a fault"
+    );
+    assert_eq!(second.current_adc, 2001);
+    let third = io.read_inputs();
+    assert_eq!((third.supply_adc, third.read_error), (Some(2100), None));
+    done(&io);
+}
+
+#[test]
 fn before_any_good_read_the_servo_sees_the_actuator_at_rest() {
-    let mut io = io([&[LOST], &[LOST], &[LOST]], &[], &[], &[]);
+    let mut io = io([&[LOST], &[LOST], &[LOST], &[LOST]], &[], &[], &[]);
     let input = io.read_inputs();
     assert_eq!(
-        (input.link_encoder, input.gear_pot, input.current_adc),
-        (0, None, ADC_MID)
+        (
+            input.link_encoder,
+            input.gear_pot,
+            input.current_adc,
+            input.supply_adc
+        ),
+        (0, None, ADC_MID, None)
     );
     // All three failed; the last one read is the one named.
     assert_eq!(input.read_error, Some(Sensor::CurrentAdc));
@@ -132,7 +172,7 @@ fn before_any_good_read_the_servo_sees_the_actuator_at_rest() {
 #[test]
 fn the_bridge_is_off_when_the_servo_says_so_and_brakes_only_while_on() {
     let mut io = io(
-        [&[], &[], &[]],
+        [&[], &[], &[], &[]],
         &[
             // Drive(+450): PWM off before the direction flips, then the duty.
             Pwm::set_duty_cycle(0),
@@ -167,7 +207,7 @@ fn the_bridge_is_off_when_the_servo_says_so_and_brakes_only_while_on() {
 fn a_bridge_error_turns_the_bridge_off_and_is_counted() {
     let failure = MockError::Io(std::io::ErrorKind::Other);
     let mut io = io(
-        [&[], &[], &[]],
+        [&[], &[], &[], &[]],
         &[
             Pwm::set_duty_cycle(0),
             Pwm::max_duty_cycle(MAX),

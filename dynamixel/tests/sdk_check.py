@@ -5,7 +5,7 @@ examples/pty_bus.rs, or the emulated boards of `vsa serve-qemu --bus` (cargo xta
     python3 -m venv /tmp/dxl-venv && /tmp/dxl-venv/bin/pip install dynamixel-sdk pyserial
     /tmp/dxl-venv/bin/python dynamixel/tests/sdk_check.py /tmp/vsa-dxl-bus [--latency-ms 16]
         [--tolerance COUNTS] [--clutch-um UM] [--load cw|ccw] [--reads N] [--sync-reads N]
-        [--zero-delay-reads N] [--baud BD]
+        [--zero-delay-reads N] [--baud BD] [--voltage DV]
 
 --tolerance: how far a present position may be from its goal (0 for the ideal devices; the
 controller's tolerance on a board); --clutch-um: the clutch length the devices start at;
@@ -13,7 +13,9 @@ controller's tolerance on a board); --clutch-um: the clutch length the devices s
 served with --qemu-load); --reads / --sync-reads / --zero-delay-reads: how many
 back-to-back 1.0 READs, 2.0 SYNC READs, and of each at return delay 0; --baud: the rate
 the port is opened at (an emulated bus ignores it, but the SDK's broadcast-ping window
-follows it and not LATENCY_TIMER: about 0.8 s at 1 Mbd, 4.4 s at 9 600 Bd).
+follows it and not LATENCY_TIMER: about 0.8 s at 1 Mbd, 4.4 s at 9 600 Bd); --voltage: the
+Present Voltage (0.1 V) each device must report (a board served with --qemu-plant supply=…
+reports the supply it measures).
 
 Protocol 1.0 (AX-12A), then a switch to 2.0 by a broadcast write of Protocol Type, the
 2.0 checks (X-series table, GroupSyncRead), a switch back and the Lock check (the store
@@ -32,7 +34,7 @@ from dynamixel_sdk import (COMM_RX_TIMEOUT, COMM_SUCCESS, GroupSyncRead, GroupSy
 
 IDS = (1, 2, 3)
 BROADCAST = 0xFE
-OPTS = {"--latency-ms": None, "--tolerance": 0, "--clutch-um": 4000, "--load": None,
+OPTS = {"--latency-ms": None, "--tolerance": 0, "--clutch-um": 4000, "--load": None, "--voltage": None,
         "--reads": 1000, "--sync-reads": 1000, "--zero-delay-reads": None, "--baud": 1000000}
 
 # AX-12A defaults (e-Manual): address -> (size, value). Firmware version is ours (1).
@@ -246,6 +248,13 @@ def protocol1(port):
             want = OPTS["--load"] == "cw"
             check(res == COMM_SUCCESS and cw == want and load & 0x3FF > 0,
                   f"1.0 id {i}: present load {load & 0x3FF} x 0.1 % {'CW' if cw else 'CCW'} (expected {OPTS['--load'].upper()})")
+    if OPTS["--voltage"] is not None:
+        # Read after the moves: a board reports the supply it measured over its last
+        # 256 ms window (the configured supply before the first).
+        for i in IDS:
+            volts, res, err = ph.read1ByteTxRx(port, i, 42)
+            check(res == COMM_SUCCESS and err == 0 and volts == OPTS["--voltage"],
+                  f"1.0 id {i}: present voltage {volts} x 0.1 V, the supply the board measures (expected {OPTS['--voltage']})")
     # Out-of-range goal: angle limit bit, goal unchanged.
     res, err = ph.write2ByteTxRx(port, 1, 30, 1500)
     check(res == COMM_SUCCESS and err & 0x02, f"1.0 goal 1500: error 0x{err:02x} has angle limit (0x02)")

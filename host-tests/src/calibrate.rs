@@ -45,6 +45,7 @@ pub fn calibrate(
             link_encoder: r.link_encoder,
             gear_pot: Some(r.gear_pot),
             current_adc: r.current_adc,
+            supply_adc: Some(r.supply_adc),
             read_error: None,
         });
         plant.step_tick_cmd(last_duty.map_or(BridgeCommand::Coast, BridgeCommand::Drive));

@@ -291,6 +291,7 @@ fn a_calibrated_miswired_build_moves_like_the_nominal_one() {
             link_encoder: r.link_encoder,
             gear_pot: Some(r.gear_pot),
             current_adc: r.current_adc,
+            supply_adc: Some(r.supply_adc),
             read_error: None,
         };
         let Some(input) = corrector.input(&raw) else {

@@ -72,6 +72,7 @@ fn run(sc: &Scenario) -> Run {
             link_encoder: r.link_encoder,
             gear_pot: Some(r.gear_pot),
             current_adc: r.current_adc,
+            supply_adc: Some(r.supply_adc),
             read_error: None,
         });
         let latched = servo.faults();

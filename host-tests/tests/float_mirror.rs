@@ -53,6 +53,7 @@ fn input(r: &plant::SensorReadings) -> TickInput {
         link_encoder: r.link_encoder,
         gear_pot: Some(r.gear_pot),
         current_adc: r.current_adc,
+        supply_adc: Some(r.supply_adc),
         read_error: None,
     }
 }
@@ -281,6 +282,7 @@ fn supervisors_latch_the_same_faults() {
                 link_encoder: 10,
                 gear_pot: Some(512),
                 current_adc: 2048,
+                supply_adc: None,
                 read_error: None,
             };
             if tick >= at {

@@ -5,7 +5,9 @@
 //! * link encoder: 12-bit magnetic, [`ENCODER_COUNTS`] per turn, wraps;
 //! * gear potentiometer: [`POT_COUNTS`] over [`POT_SPAN_DEG`]°;
 //! * motor current: 12-bit ADC ([`ADC_COUNTS`]), [`ADC_MID`] at 0 A, [`ADC_COUNTS_PER_A`]
-//!   counts per ampere (±2 A full scale).
+//!   counts per ampere (±2 A full scale);
+//! * bridge supply: the same 12-bit ADC behind a divider, [`SUPPLY_MV_PER_COUNT`] mV of
+//!   supply per count (0…20.475 V).
 //!
 //! The fixed-point angles (`*_Q32`, I32F32 bits) are computed here at compile time from
 //! the counts and `fixed`'s 2π, each rounded to nearest once.
@@ -22,6 +24,9 @@ pub const ADC_COUNTS: u16 = 4096;
 pub const ADC_MID: u16 = ADC_COUNTS / 2;
 /// Current ADC counts per ampere (±2 A over the full scale).
 pub const ADC_COUNTS_PER_A: u16 = 1024;
+/// Supply sense, mV of bridge supply per ADC count: a 1 : 6.2 divider into the 3.3 V,
+/// 12-bit ADC (docs/design.md §3). 12 V reads 2 400 counts.
+pub const SUPPLY_MV_PER_COUNT: u16 = 5;
 
 /// 2π as U67F64 bits (`fixed::consts::TAU`, U3F125, rounded to 64 fractional bits).
 const TAU_Q64: u128 = (fixed::consts::TAU.to_bits() + (1 << 60)) >> 61;

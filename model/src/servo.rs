@@ -10,6 +10,7 @@
 //! but an explicit enable turns the motor on.
 
 use crate::control::rest_resistance::{offset_tolerance_q16, RestResistance};
+use crate::control::supply_window::SupplyWindow;
 use crate::control::{
     Command, Config, ControlError, Controller, Impedance, ImpedanceCommand, ImpedanceError,
     Measurements, Output,
@@ -115,6 +116,10 @@ pub struct TickInput {
     pub gear_pot: Option<u16>,
     /// Current ADC, raw counts.
     pub current_adc: u16,
+    /// Supply sense, raw counts ([`crate::sensors::SUPPLY_MV_PER_COUNT`]), if the board has
+    /// one and its read succeeded: advisory, read after the tick
+    /// ([`crate::control::supply_window`]); a failed read is left out, not a fault.
+    pub supply_adc: Option<u16>,
     /// A driver failed (its reading is the last good one).
     pub read_error: Option<Sensor>,
 }
@@ -356,27 +361,37 @@ impl Servo {
         }
     }
 
-    /// The configuration to prepare when the armature resistance a still, held link under
-    /// load showed (`window`, kept by the caller after each tick: [`RestResistance::tick`])
-    /// differs from the configured one by more than its tolerance: the one in force with
-    /// that resistance, and the supervisor's settings in force. `offset_calibrated`: a
-    /// calibration is in force and the current sense's zero known; without one the
-    /// resistance moves only as far as the offset's tolerance allows
-    /// ([`RestResistance::differs_from`]). Called before a command (docs/design.md §11,
-    /// "Tracking a warm motor's resistance").
+    /// The configuration to prepare when the actuator differs from the one in force
+    /// beyond a tolerance: the supply the board measured (`supply`, kept by the caller
+    /// after each tick: [`SupplyWindow::tick`]), then the armature resistance a still,
+    /// held link under load showed (`window`: [`RestResistance::tick`]), that resistance
+    /// taken with the supply now in force. Returns the one in force with those, and the
+    /// supervisor's settings in force. `offset_calibrated`: a calibration is in force and
+    /// the current sense's zero known; without one the resistance moves only as far as the
+    /// offset's tolerance allows ([`RestResistance::differs_from`]). Called before a
+    /// command (docs/design.md §11, "The supply the board measures", "Tracking a warm
+    /// motor's resistance").
     #[must_use]
     pub fn tracked_configuration(
         &self,
+        supply: &SupplyWindow,
         window: &RestResistance,
         offset_calibrated: bool,
     ) -> Option<(Config, SupervisorConfig)> {
         let mut config = *self.controller.config();
-        config.motor.resistance_ohm = window.differs_from(
+        let measured = supply.differs_from(config.motor.supply_v);
+        if let Some(v) = measured {
+            config.motor.supply_v = v;
+        }
+        let resistance = window.differs_from(
             config.motor.supply_v,
             config.motor.resistance_ohm,
             offset_tolerance_q16(offset_calibrated),
-        )?;
-        Some((config, *self.supervisor.config()))
+        );
+        if let Some(r) = resistance {
+            config.motor.resistance_ohm = r;
+        }
+        (measured.is_some() || resistance.is_some()).then(|| (config, *self.supervisor.config()))
     }
 
     /// Takes a configuration prepared ahead of time (its schedule and thresholds, a copy,
@@ -554,6 +569,7 @@ mod tests {
         link_encoder: 0,
         gear_pot: Some(512),
         current_adc: 2048,
+        supply_adc: None,
         read_error: None,
     };
 

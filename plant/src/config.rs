@@ -213,6 +213,9 @@ pub struct SensorConfig {
     /// Standard deviation of the pot noise, counts (same generator as the current noise,
     /// drawn after it; no draw when 0). Default 0.
     pub pot_noise_counts: f32,
+    /// Supply sense gain error: the ADC reads `supply_sense_gain`·V_s (5 mV a count
+    /// nominal; the divider's resistors and the ADC reference). Default 1.
+    pub supply_sense_gain: f32,
 }
 
 impl Default for SensorConfig {
@@ -230,6 +233,7 @@ impl Default for SensorConfig {
             pot_gain: 1.0,
             pot_nonlinearity_counts: 0.0,
             pot_noise_counts: 0.0,
+            supply_sense_gain: 1.0,
         }
     }
 }

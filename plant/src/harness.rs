@@ -17,6 +17,7 @@
 use model::calibration::correction::SensorCorrection;
 use model::calibration::pipeline::Pipeline;
 use model::control::rest_resistance::RestResistance;
+use model::control::supply_window::SupplyWindow;
 use model::control::{Command, Config, ControlError, Flags, ImpedanceCommand, Schedule};
 use model::sensors::encoder_delta;
 use model::servo::{BridgeDemand, Prepared, Servo, ServoError, TickInput};
@@ -62,6 +63,10 @@ pub struct Scenario {
     pub run_ticks: u32,
     /// Whether the controller gets the gear potentiometer.
     pub use_pot: bool,
+    /// Whether the board has a supply sense (its readings go to the servo's supply window,
+    /// docs/design.md §11, "The supply the board measures"); without one the configured
+    /// supply stays in force.
+    pub use_supply_sense: bool,
     /// Length of the final window for the steadiness metrics, ticks.
     pub steady_window_ticks: u32,
     /// First tick after the command counted in the RMS tracking error.
@@ -90,8 +95,9 @@ pub struct Scenario {
     pub correction: SensorCorrection,
     /// A calibration is in force: before each motion command the armature resistance a
     /// held link under load showed is configured taking the current offset as known
-    /// ([`Servo::tracked_configuration`]); without one (the default) only as far as the
-    /// offset's tolerance allows, as the boards' service does.
+    /// ([`Servo::tracked_configuration`], with the supply the sense measured); without one
+    /// (the default) only as far as the offset's tolerance allows, as the boards' service
+    /// does.
     pub offset_calibrated: bool,
 }
 
@@ -109,6 +115,7 @@ impl Scenario {
             settle_ticks: 500,
             run_ticks: 2000,
             use_pot: true,
+            use_supply_sense: true,
             steady_window_ticks: 500,
             rms_from_ticks: 0,
             substeps: 0,
@@ -582,6 +589,7 @@ where
     let mut move_ms = None;
     // The still window of a held link (R·i), kept after each tick as the boards' service does.
     let mut window = RestResistance::NEW;
+    let mut supply = SupplyWindow::NEW;
     for tick in 0..rec.total_ticks() {
         // The scenario's command at `settle_ticks`, then the script's (if any).
         let command = if tick == sc.settle_ticks {
@@ -597,7 +605,7 @@ where
             let impedance = tick == sc.settle_ticks && sc.impedance.is_some();
             if !impedance && !matches!(command, Command::Hold) {
                 if let Some((config, supervision)) =
-                    servo.tracked_configuration(&window, sc.offset_calibrated)
+                    servo.tracked_configuration(&supply, &window, sc.offset_calibrated)
                 {
                     if let Ok(p) = Prepared::new(&sc.design, &config, &supervision) {
                         let _ = servo.adopt_prepared(&p);
@@ -620,15 +628,14 @@ where
                 Err(e) => return Err(e),
             }
         }
-        let out = pipeline.tick(
-            &mut servo,
-            &TickInput {
-                link_encoder: readings.link_encoder,
-                gear_pot: sc.use_pot.then_some(readings.gear_pot),
-                current_adc: readings.current_adc,
-                read_error: None,
-            },
-        );
+        let input = TickInput {
+            link_encoder: readings.link_encoder,
+            gear_pot: sc.use_pot.then_some(readings.gear_pot),
+            current_adc: readings.current_adc,
+            supply_adc: sc.use_supply_sense.then_some(readings.supply_adc),
+            read_error: None,
+        };
+        let out = pipeline.tick(&mut servo, &input);
         if tick == sc.settle_ticks {
             let target = servo
                 .impedance_command()
@@ -638,6 +645,7 @@ where
             rec.on_command(true_angle, fx32(target.to_bits()), measured);
         }
         window.tick(out.bridge.drives(), &out.control);
+        supply.tick(input.supply_adc);
         servo.track_speed(&out);
         let (cmd, duty) = (bridge_command(out.bridge), out.bridge.duty());
         readings = plant.step_tick_cmd(cmd);

@@ -35,6 +35,7 @@
 //! | `noise-seed` | seed of the sensors' noise | a bare number | 0x2545F491 |
 //! | `clutch` | the clutch's actual length (the coupling is derived again) | `mm` | the configured one |
 //! | `power-up-angle` | link angle at power-up (the encoder starts at `encoder-zero` there) | `rad`, `deg` | 0 |
+//! | `supply-sense-gain` | supply sense gain (reading = gain·true supply) | factor | 1 |
 //!
 //! Signs (`±1`) take `1` or `-1` only; counts, the seed and the power-up angle take no
 //! factor.
@@ -92,6 +93,8 @@ pub enum Param {
     Clutch,
     /// Link angle at power-up, rad.
     PowerUpAngle,
+    /// Supply-sense gain, factor.
+    SupplySenseGain,
 }
 
 /// Name, units (spelling, factor to SI) and whether it is an offset (no `xF`), per
@@ -129,7 +132,7 @@ const RAD: &[(&str, f64)] = &[
     ("°", core::f64::consts::PI / 180.0),
 ];
 
-const SPECS: [Spec; 23] = [
+const SPECS: [Spec; 24] = [
     Spec {
         param: Param::Resistance,
         name: "resistance",
@@ -253,11 +256,17 @@ const SPECS: [Spec; 23] = [
         units: RAD,
         offset: true,
     },
+    Spec {
+        param: Param::SupplySenseGain,
+        name: "supply-sense-gain",
+        units: FACTOR,
+        offset: false,
+    },
 ];
 
 impl Param {
     /// Every parameter, in the table's order.
-    pub const ALL: [Param; 23] = [
+    pub const ALL: [Param; 24] = [
         Param::Resistance,
         Param::TorqueConstant,
         Param::BackEmf,
@@ -281,6 +290,7 @@ impl Param {
         Param::NoiseSeed,
         Param::Clutch,
         Param::PowerUpAngle,
+        Param::SupplySenseGain,
     ];
 
     fn spec(self) -> &'static Spec {
@@ -333,6 +343,7 @@ impl Param {
             Param::NoiseSeed => pc.sensors.noise_seed as f32,
             Param::Clutch => pc.clutch_length_m,
             Param::PowerUpAngle => pc.power_up_angle_rad,
+            Param::SupplySenseGain => pc.sensors.supply_sense_gain,
         }
     }
 
@@ -362,6 +373,7 @@ impl Param {
             Param::NoiseSeed => pc.sensors.noise_seed = v as u32,
             Param::Clutch => pc.clutch_length_m = v,
             Param::PowerUpAngle => pc.power_up_angle_rad = v,
+            Param::SupplySenseGain => pc.sensors.supply_sense_gain = v,
         }
     }
 
@@ -400,7 +412,7 @@ impl Param {
             Param::GearFriction | Param::LinkFriction => (0.0, 10.0),
             Param::Supply => (1.0, 100.0),
             Param::CurrentOffset => (-1000.0, 1000.0),
-            Param::CurrentGain | Param::PotGain => (0.1, 10.0),
+            Param::CurrentGain | Param::PotGain | Param::SupplySenseGain => (0.1, 10.0),
             Param::PotOffset => (-250.0, 250.0),
             Param::MotorPolarity | Param::EncoderDirection | Param::PotDirection => (-1.0, 1.0),
             Param::EncoderZero => (0.0, 16383.0),

@@ -935,6 +935,7 @@ pub fn run_on_host_with_plant<F: FnMut(&ScenarioEvent)>(
                 link_encoder: r.link_encoder,
                 gear_pot: Some(r.gear_pot),
                 current_adc: r.current_adc,
+                supply_adc: Some(r.supply_adc),
                 read_error: None,
             },
         );

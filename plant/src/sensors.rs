@@ -3,6 +3,7 @@
 
 use model::sensors::{
     ADC_COUNTS, ADC_COUNTS_PER_A, ADC_MID, ENCODER_COUNTS, POT_COUNTS, POT_SPAN_DEG,
+    SUPPLY_MV_PER_COUNT,
 };
 
 /// One link-encoder count, rad (2π/4096; f64 for the host-side figures).
@@ -67,7 +68,7 @@ pub enum SensorFault {
     Offset(i16),
 }
 
-/// Fault hooks of the three channels.
+/// Fault hooks of the four channels.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct SensorFaults {
     /// Gear-side potentiometer.
@@ -76,6 +77,8 @@ pub struct SensorFaults {
     pub link_encoder: SensorFault,
     /// Motor current ADC.
     pub current_adc: SensorFault,
+    /// Supply sense ADC.
+    pub supply_adc: SensorFault,
 }
 
 /// Raw sensor values, as the board's peripherals deliver them.
@@ -90,6 +93,9 @@ pub struct SensorReadings {
     /// Motor current ADC, 0..=4095: 2048 + 1024·gain·i (i in A, ±2 A full scale) + offset error +
     /// noise, rounded, clamped at the rails.
     pub current_adc: u16,
+    /// Supply sense ADC, 0..=4095: gain·V_s / 5 mV (`SUPPLY_MV_PER_COUNT`), rounded,
+    /// clamped at the rails.
+    pub supply_adc: u16,
 }
 
 #[inline]
@@ -137,6 +143,13 @@ pub(crate) fn encoder_counts(since_power_up_rad: f64, s: &crate::SensorConfig) -
     // `as` saturates (NaN → 0): no panic; rem_euclid by a positive constant cannot panic.
     let c = libm::floor(turned * counts_per_rad) as i64 + i64::from(s.encoder_zero_counts);
     c.rem_euclid(i64::from(per_turn)) as u16
+}
+
+/// The supply sense's reading of `supply_v` through a divider whose gain is `gain` times
+/// the nominal one (resistor and reference tolerances).
+pub(crate) fn supply_counts(supply_v: f32, gain: f32) -> u16 {
+    let mv = (supply_v * gain * 1000.0).clamp(0.0, 1.0e5);
+    round_clamp(mv / f32::from(SUPPLY_MV_PER_COUNT), ADC_COUNTS - 1)
 }
 
 pub(crate) fn adc_counts(current_a: f32, gain: f32, offset: f32, noise: f32) -> u16 {
@@ -192,6 +205,13 @@ impl SensorFaults {
                 self.current_adc,
                 raw.current_adc,
                 last.current_adc,
+                ADC_COUNTS - 1,
+                false,
+            ),
+            supply_adc: apply(
+                self.supply_adc,
+                raw.supply_adc,
+                last.supply_adc,
                 ADC_COUNTS - 1,
                 false,
             ),

@@ -3,7 +3,7 @@
 use crate::config::{CouplingConfig, PlantConfig, DUTY_FULL_SCALE, TICK_S};
 use crate::coupling::{Branch, Coupling};
 use crate::sensors::{
-    adc_counts, encoder_counts, pot_counts, SensorFaults, SensorReadings, XorShift32,
+    adc_counts, encoder_counts, pot_counts, supply_counts, SensorFaults, SensorReadings, XorShift32,
 };
 
 /// What the H-bridge does during one tick.
@@ -265,6 +265,12 @@ impl Plant {
         self.d = derive(&self.cfg);
     }
 
+    /// The bridge supply from now on, V (a battery discharging, another bench supply).
+    pub fn set_supply(&mut self, volts: f32) {
+        self.cfg.motor.supply_voltage_v = volts;
+        self.d = derive(&self.cfg);
+    }
+
     /// External torque on the link, N·m, held until changed (adds to the configured load).
     /// The closure-free way to apply an arbitrary profile: set it before each tick.
     pub fn set_external_torque(&mut self, torque_nm: f32) {
@@ -465,6 +471,7 @@ impl Plant {
                 s.current_offset_counts,
                 noise,
             ),
+            supply_adc: supply_counts(self.cfg.motor.supply_voltage_v, s.supply_sense_gain),
         };
         self.readings = self.faults.apply(raw, self.readings);
     }

@@ -25,6 +25,9 @@ pub struct RawSensors {
     pub gear_pot: Option<u16>,
     /// Current ADC, raw 12-bit counts (mid-scale at 0 A for the expected sensor).
     pub current_adc: u16,
+    /// Supply sense, raw 12-bit counts (5 mV of bridge supply a count), if the board has
+    /// one and the read succeeded.
+    pub supply_adc: Option<u16>,
     /// Open-loop duty applied in that tick by a nudge or the calibration sequence, ‰
     /// (0: none).
     pub nudge_duty_permille: i16,

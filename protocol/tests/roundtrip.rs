@@ -251,6 +251,7 @@ fn largest_replies() -> Vec<Reply> {
             link_encoder: u16::MAX,
             gear_pot: Some(u16::MAX),
             current_adc: u16::MAX,
+            supply_adc: Some(u16::MAX),
             nudge_duty_permille: i16::MIN,
         }),
         Reply::FaultsLog {

@@ -450,7 +450,12 @@ impl<M: Mutex<T = Actuator>> Backend for ServoBackend<'_, '_, M> {
                 .actuator
                 .lock(|a| i32::from(a.servo.controller().trajectory().is_moving())),
             Field::PresentVoltage => {
-                let v = self.dev.service.config().motor.supply_v;
+                // The supply the board measures; the configured one without a sense.
+                let v = self
+                    .dev
+                    .actuator
+                    .lock(|a| a.measured_supply())
+                    .unwrap_or(self.dev.service.config().motor.supply_v);
                 div_round(i64::from(q32_to_micro(v.to_bits())), 100_000) as i32
             }
             Field::PresentTemperature => NO_SENSOR_TEMPERATURE,

@@ -25,6 +25,7 @@
 
 use model::calibration::pipeline::Pipeline;
 use model::control::rest_resistance::RestResistance;
+use model::control::supply_window::SupplyWindow;
 use model::control::{ClutchSetting, Command, Config, PidGains};
 use model::sensors::POT_COUNT_Q32;
 use model::servo::{Prepared, Servo, ServoError, ServoState, TickInput, TickOutput};
@@ -243,6 +244,8 @@ pub struct Actuator {
     torque: i64,
     /// The still window of a held link under load (its R·i), kept after each tick.
     rest_resistance: RestResistance,
+    /// The supply the board measures, kept after each tick.
+    supply: SupplyWindow,
 }
 
 impl Actuator {
@@ -260,6 +263,7 @@ impl Actuator {
             link_velocity: 0,
             torque: 0,
             rest_resistance: RestResistance::NEW,
+            supply: SupplyWindow::NEW,
         }
     }
 
@@ -294,9 +298,17 @@ impl Actuator {
         self.link_velocity = out.control.link_velocity.to_bits();
         self.torque = out.control.torque_estimate.to_bits();
         self.rest_resistance.tick(out.bridge.drives(), &out.control);
+        self.supply.tick(input.supply_adc);
         self.servo.track_speed(out);
         let seq = self.telemetry.due()?;
         Some((seq, self.sample(input, out)))
+    }
+
+    /// The bridge supply the board measured over the last full window, V, if it has a
+    /// supply sense ([`SupplyWindow::volts`]).
+    #[must_use]
+    pub fn measured_supply(&self) -> Option<fixed::types::I32F32> {
+        self.supply.volts()
     }
 
     /// [`Actuator::after_tick`], and the sample (if one is due) into `queue`, the link's
@@ -570,17 +582,18 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         Ok(length_um)
     }
 
-    /// Configures the armature resistance a held link under load showed when it
-    /// differs from the one in force (a motor warmer or colder than configured or
-    /// calibrated, docs/design.md §11, "Tracking a warm motor's resistance"; without a
+    /// Configures the supply the board measured and the armature resistance a held link
+    /// under load showed when they differ from the ones in force (a supply other than
+    /// configured, docs/design.md §11, "The supply the board measures"; a motor warmer or
+    /// colder than configured or calibrated, "Tracking a warm motor's resistance"; without a
     /// calibration only as far as the current offset's tolerance allows): prepared unlocked (the
     /// slow maths), adopted locked with the servo's state kept. A refused configuration
     /// keeps the one in force. `plant::harness` does the same before its motion commands.
-    fn track_resistance(&mut self) {
+    fn track_actuator(&mut self) {
         let calibrated = self.service.offset_calibrated;
         let Some((config, supervision)) = self.actuator.lock(|a| {
             a.servo
-                .tracked_configuration(&a.rest_resistance, calibrated)
+                .tracked_configuration(&a.supply, &a.rest_resistance, calibrated)
         }) else {
             return;
         };
@@ -593,6 +606,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
             .is_ok()
         {
             self.service.config.motor.resistance_ohm = config.motor.resistance_ohm;
+            self.service.config.motor.supply_v = config.motor.supply_v;
             let tracked = i64::from(q32_to_milli(config.motor.resistance_ohm.to_bits()));
             self.service.tracked_resistance_permille = self.service.calibration().map(|c| {
                 let calibrated = i64::from(c.wire.resistance_mohm).max(1);
@@ -620,9 +634,9 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
     }
 
     /// Gives the servo a motion command; only while enabled. First the resistance a held
-    /// link under load showed ([`Self::track_resistance`]).
+    /// link under load showed and the supply the board measured ([`Self::track_actuator`]).
     fn motion(&mut self, cmd: Command) -> Result<(), ErrorCode> {
-        self.track_resistance();
+        self.track_actuator();
         self.actuator.lock(|a| {
             if a.servo.state() != ServoState::Enabled {
                 return Err(ErrorCode::NotAllowed);

@@ -73,6 +73,7 @@ impl OpenLoop {
             link_encoder: input.link_encoder,
             gear_pot: input.gear_pot,
             current_adc: input.current_adc,
+            supply_adc: input.supply_adc,
             nudge_duty_permille: nudge,
         };
         self.ticked = true;
@@ -123,6 +124,7 @@ mod tests {
         link_encoder: 0,
         gear_pot: Some(512),
         current_adc: 2048,
+        supply_adc: None,
         read_error: None,
     };
 

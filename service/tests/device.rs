@@ -64,6 +64,7 @@ impl Board {
             link_encoder: enc,
             gear_pot: Some(pot),
             current_adc: 2048,
+            supply_adc: None,
             read_error: None,
         };
         for _ in 0..n {
@@ -431,6 +432,7 @@ fn telemetry_samples_are_in_wire_units() {
         link_encoder: 100,
         gear_pot: Some(522),
         current_adc: 3072,
+        supply_adc: None,
         read_error: None,
     };
     let mut samples = Vec::new();
@@ -489,6 +491,7 @@ fn enable_is_busy_during_the_boot_window_then_accepted() {
         link_encoder: 0,
         gear_pot: Some(512),
         current_adc: 2048,
+        supply_adc: None,
         read_error: None,
     };
     // The 32-tick window (model::calibration::correction::BOOT_TICKS), counted here on

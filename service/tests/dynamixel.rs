@@ -80,6 +80,25 @@ impl Bench {
     }
 }
 
+/// Present Voltage is the supply the board measures: a battery at 11.1 V reads 111 once a
+/// window of the supply sense has passed (256 ticks), the configured 12 V before.
+#[test]
+fn present_voltage_is_the_supply_the_board_measures() {
+    let mut b = Bench::new(0.0);
+    b.lp.plant().set_supply(11.1);
+    b.run(20);
+    let (_, _, v) = b.ask(1, ins::READ, &[42, 1]).unwrap();
+    assert_eq!(v, [120], "no full window yet: the configured supply");
+    b.run(300);
+    let (_, _, v) = b.ask(1, ins::READ, &[42, 1]).unwrap();
+    assert_eq!(v, [111]);
+    // A window that saw both supplies is a mean of them; the next one is 12.6 V alone.
+    b.lp.plant().set_supply(12.6);
+    b.run(600);
+    let (_, _, v) = b.ask(1, ins::READ, &[42, 1]).unwrap();
+    assert_eq!(v, [126]);
+}
+
 #[test]
 fn it_answers_as_an_ax12a_with_the_defaults() {
     let mut b = Bench::new(0.0);
@@ -95,7 +114,7 @@ fn it_answers_as_an_ax12a_with_the_defaults() {
     assert_eq!(b.read16(36), 512);
     // Torque limit: the default margin 0.85 of the beams' capacity, in 1/1023.
     assert_eq!(b.read16(34), (0.85f64 * 1023.0).round() as u16);
-    // Present voltage: the configured 12 V supply.
+    // Present voltage: the 12 V supply the board measures.
     let (_, _, v) = b.ask(1, ins::READ, &[42, 1]).unwrap();
     assert_eq!(v, [120]);
     // Clutch length 3 mm, and its stiffness and capacity agree with our own protocol.

@@ -155,7 +155,7 @@ proptest! {
         let mut actuator = Cell(Actuator::aligned(servo));
         let mut service = Service::new(design, config, sup);
         let mut handler = Handler::new();
-        let input = TickInput { link_encoder: 0, gear_pot: Some(512), current_adc: 2048, read_error: None };
+        let input = TickInput { link_encoder: 0, gear_pot: Some(512), current_adc: 2048, supply_adc: Some(2400), read_error: None };
         // The three states: disabled, enabled, faulted (an ADC rail reading).
         if state >= 1 {
             actuator.0.servo.enable().unwrap();

@@ -132,6 +132,7 @@ fn a_full_telemetry_queue_drops_counts_and_skips_sequence_numbers() {
         link_encoder: 0,
         gear_pot: Some(512),
         current_adc: 2048,
+        supply_adc: None,
         read_error: None,
     };
     // 20 ticks at 500 Hz: 10 samples due; the link takes none, so 3 queue, 7 drop.

@@ -40,6 +40,9 @@ const LOAD_MNM: i32 = 300;
 const TOLERANCE_COUNTS: u32 = 2;
 /// The clutch length the served boards start at, µm (`firmware::board::SERVED_CLUTCH_MM`).
 const CLUTCH_UM: u32 = 3_000;
+/// The served actuators' bridge supply, 0.1 V: 11.5 V, below the configured 12 V, which
+/// the boards measure and report in Present Voltage.
+const SUPPLY_DV: u32 = 115;
 /// Back-to-back reads at return delay 0 and SYNC READs (each: 1.0 and 2.0 at delay 0).
 const SHORT_READS: u32 = 100;
 /// Back-to-back 1.0 READs unless `DXL_READS` says otherwise.
@@ -187,6 +190,8 @@ fn three_boards(python: &Path, vsa: &Path, board: Board, elf: &Path) -> Result<S
         &[
             "--qemu-load",
             &load,
+            "--qemu-plant",
+            &format!("supply={}V", f64::from(SUPPLY_DV) / 10.0),
             "--ids",
             "1,2,3",
             "--qemu-log",
@@ -206,6 +211,7 @@ fn three_boards(python: &Path, vsa: &Path, board: Board, elf: &Path) -> Result<S
         .args(["--sync-reads", &SHORT_READS.to_string()])
         .args(["--tolerance", &TOLERANCE_COUNTS.to_string()])
         .args(["--clutch-um", &CLUTCH_UM.to_string(), "--load", "cw"])
+        .args(["--voltage", &SUPPLY_DV.to_string()])
         .output()
         .context("running sdk_check.py")?;
     let secs = started.elapsed().as_secs_f64();

@@ -14,7 +14,17 @@ use crate::cmd::{cargo, describe, run_status, target_dir};
 const NUDGE_PERMILLE: i16 = 100;
 const NUDGE_MS: u32 = 300;
 
-/// One row of `vsa sensors`: tick, link encoder, gear pot, current ADC, nudge duty.
+/// Column header of `vsa sensors`.
+const HEADER: &str = "tick\tlink_encoder\tgear_pot\tcurrent_adc\tnudge_permille\tsupply_adc\n";
+
+/// The supply sense's reading of the simulated actuator's supply (12 V: 2 400 counts).
+fn simulated_supply_counts() -> u16 {
+    let volts = plant::PlantConfig::default().motor.supply_voltage_v;
+    (volts * 1000.0 / f32::from(model::sensors::SUPPLY_MV_PER_COUNT)).round() as u16
+}
+
+/// One row of `vsa sensors`: tick, link encoder, gear pot, current ADC, nudge duty, supply
+/// sense.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Row {
     tick: u32,
@@ -22,11 +32,12 @@ struct Row {
     pot: u16,
     current: u16,
     nudge: i16,
+    supply: u16,
 }
 
 fn parse_row(line: &str) -> Option<Row> {
     let f: Vec<&str> = line.split('\t').collect();
-    let [tick, link, pot, current, nudge] = f.as_slice() else {
+    let [tick, link, pot, current, nudge, supply] = f.as_slice() else {
         return None;
     };
     Some(Row {
@@ -35,6 +46,7 @@ fn parse_row(line: &str) -> Option<Row> {
         pot: pot.parse().ok()?,
         current: current.parse().ok()?,
         nudge: nudge.parse().ok()?,
+        supply: supply.parse().ok()?,
     })
 }
 
@@ -49,7 +61,7 @@ fn encoder_delta(now: u16, before: u16) -> i32 {
 fn check_stream(stdout: &str) -> Result<String> {
     let mut lines = stdout.lines();
     ensure!(
-        lines.next() == Some("tick\tlink_encoder\tgear_pot\tcurrent_adc\tnudge_permille"),
+        lines.next() == Some(HEADER.trim_end()),
         "no header in {stdout:?}"
     );
     let mut lines: Vec<&str> = lines.collect();
@@ -70,6 +82,11 @@ fn check_stream(stdout: &str) -> Result<String> {
     ensure!(
         rows.windows(2).all(|w| w[0].tick < w[1].tick),
         "ticks do not increase: {rows:?}"
+    );
+    let supply = simulated_supply_counts();
+    ensure!(
+        rows.iter().all(|r| r.supply == supply),
+        "the supply sense does not read the simulated supply ({supply} counts): {rows:?}"
     );
     let (first, last) = (rows[0], rows[rows.len() - 1]);
     ensure!(first.nudge == 0, "nudging before it was asked: {first:?}");
@@ -128,12 +145,10 @@ pub fn check(board: Board, elf: &Path) -> Result<String> {
 mod tests {
     use super::*;
 
-    const HEADER: &str = "tick\tlink_encoder\tgear_pot\tcurrent_adc\tnudge_permille\n";
-
     fn stream(rows: &[(u32, u16, u16, i16)]) -> String {
         let mut s = HEADER.to_string();
         for (tick, link, pot, nudge) in rows {
-            s.push_str(&format!("{tick}\t{link}\t{pot}\t2048\t{nudge}\n"));
+            s.push_str(&format!("{tick}\t{link}\t{pot}\t2048\t{nudge}\t2400\n"));
         }
         s.push_str("n readings; …\n");
         s

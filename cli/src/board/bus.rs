@@ -88,10 +88,7 @@ fn start_boards(ids: &[u8], conn: &ConnectArgs) -> CliResult<Vec<(Adopted, TcpSt
     for &id in ids {
         let mut opts = QemuOptions::new(target.board, &elf);
         opts.firmware_args = vec!["--dxl-id".to_owned(), id.to_string()];
-        if target.load_mnm != 0 {
-            opts.firmware_args
-                .extend(["--load-mnm".to_owned(), target.load_mnm.to_string()]);
-        }
+        opts.firmware_args.extend(target.actuator_args());
         // One flash per board, named for its factory ID: the same command line after a
         // power cycle gives each board its stored settings back.
         if let Some(f) = &conn.qemu_flash {

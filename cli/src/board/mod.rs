@@ -304,21 +304,34 @@ impl QemuTarget {
         }
     }
 
-    /// Builds (if needed) and starts the board; returns it and a client it has answered.
-    pub fn start(&self) -> CliResult<(Adopted, Client)> {
-        let elf = self.elf()?;
-        let sink = self.sink()?;
-        let mut firmware_args = if self.load_mnm == 0 {
+    /// The served firmware's arguments for the simulated actuator: its load and its
+    /// changes from the nominal one (`--qemu-load`, `--qemu-plant`).
+    fn actuator_args(&self) -> Vec<String> {
+        let mut args = if self.load_mnm == 0 {
             Vec::new()
         } else {
             vec!["--load-mnm".to_owned(), self.load_mnm.to_string()]
         };
-        if let Some(f) = &self.flash {
-            firmware_args.extend(["--flash".to_owned(), f.clone()]);
-        }
         for o in &self.plant {
-            firmware_args.extend(["--plant".to_owned(), o.clone()]);
+            args.extend(["--plant".to_owned(), o.clone()]);
         }
+        args
+    }
+
+    /// The served firmware's arguments: [`QemuTarget::actuator_args`] and the flash file.
+    fn firmware_args(&self) -> Vec<String> {
+        let mut args = self.actuator_args();
+        if let Some(f) = &self.flash {
+            args.extend(["--flash".to_owned(), f.clone()]);
+        }
+        args
+    }
+
+    /// Builds (if needed) and starts the board; returns it and a client it has answered.
+    pub fn start(&self) -> CliResult<(Adopted, Client)> {
+        let elf = self.elf()?;
+        let sink = self.sink()?;
+        let firmware_args = self.firmware_args();
         let (board, mut client) = QemuBoard::start(self.board, &elf, &firmware_args, sink)
             .map_err(|e| CliError::runtime(e.to_string()))?;
         // A board just powered up aligns its encoder to the pot for 32 ms with the motor

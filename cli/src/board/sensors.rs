@@ -1,5 +1,5 @@
 //! `vsa sensors`: the bring-up mode. Streams the raw readings of the link encoder, the gear
-//! pot and the current ADC, and can nudge the motor open-loop at a low, bounded duty
+//! pot, the current ADC and the supply sense, and can nudge the motor open-loop at a low, bounded duty
 //! (`--nudge`), so that each sensor and the motor's direction can be checked before the
 //! loop is closed (docs/real-board.md). The board refuses the nudge unless the motor is
 //! disabled; the nudge ends by itself.
@@ -85,16 +85,19 @@ fn plan(a: &SensorsArgs) -> CliResult<Plan> {
 }
 
 /// Column header of the stream.
-const HEADER: &str = "tick\tlink_encoder\tgear_pot\tcurrent_adc\tnudge_permille\n";
+const HEADER: &str = "tick\tlink_encoder\tgear_pot\tcurrent_adc\tnudge_permille\tsupply_adc\n";
 
 /// One reading as a row of the stream.
 fn row(r: &RawSensors) -> String {
-    let pot = r
-        .gear_pot
-        .map_or_else(|| "-".to_string(), |p| p.to_string());
+    let or_dash = |v: Option<u16>| v.map_or_else(|| "-".to_string(), |p| p.to_string());
     format!(
-        "{}\t{}\t{}\t{}\t{}\n",
-        r.tick, r.link_encoder, pot, r.current_adc, r.nudge_duty_permille
+        "{}\t{}\t{}\t{}\t{}\t{}\n",
+        r.tick,
+        r.link_encoder,
+        or_dash(r.gear_pot),
+        r.current_adc,
+        r.nudge_duty_permille,
+        or_dash(r.supply_adc)
     )
 }
 
@@ -111,11 +114,14 @@ fn summary(rows: &[RawSensors]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{} readings; link encoder {} counts, gear pot {} counts, current ADC {} counts",
+        "{} readings; link encoder {} counts, gear pot {} counts, current ADC {} counts, \
+         supply {} counts ({} mV a count)",
         rows.len(),
         range(&mut rows.iter().map(|r| r.link_encoder)),
         range(&mut rows.iter().filter_map(|r| r.gear_pot)),
         range(&mut rows.iter().map(|r| r.current_adc)),
+        range(&mut rows.iter().filter_map(|r| r.supply_adc)),
+        model::sensors::SUPPLY_MV_PER_COUNT,
     );
     s
 }
@@ -235,9 +241,10 @@ mod tests {
             link_encoder: 4095,
             gear_pot: None,
             current_adc: 2050,
+            supply_adc: Some(2400),
             nudge_duty_permille: -40,
         };
-        assert_eq!(row(&r), "7\t4095\t-\t2050\t-40\n");
+        assert_eq!(row(&r), "7\t4095\t-\t2050\t-40\t2400\n");
         let rows = [
             r,
             RawSensors {
@@ -247,7 +254,8 @@ mod tests {
         ];
         assert_eq!(
             summary(&rows),
-            "2 readings; link encoder 3..4095 counts, gear pot - counts, current ADC 2050..2050 counts\n"
+            "2 readings; link encoder 3..4095 counts, gear pot - counts, current ADC 2050..2050 \
+             counts, supply 2400..2400 counts (5 mV a count)\n"
         );
     }
 }

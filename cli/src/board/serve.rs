@@ -110,8 +110,10 @@ pub fn run(a: &ServeArgs, conn: &ConnectArgs) -> CliResult<()> {
     let target = conn.qemu_target()?;
     let elf = target.elf()?;
     let sink = target.sink()?;
-    let (qemu, transport) = QemuBoard::spawn(&QemuOptions::new(target.board, elf), sink)
-        .map_err(|e| CliError::runtime(e.to_string()))?;
+    let mut opts = QemuOptions::new(target.board, elf);
+    opts.firmware_args = target.firmware_args();
+    let (qemu, transport) =
+        QemuBoard::spawn(&opts, sink).map_err(|e| CliError::runtime(e.to_string()))?;
     let qemu = super::adopt(qemu);
     let to_qemu = transport
         .stream()

@@ -251,11 +251,13 @@ mod suite {
                     readings.link_encoder,
                     readings.gear_pot,
                     readings.current_adc,
+                    readings.supply_adc,
                 );
                 fio.present(
                     freadings.link_encoder,
                     freadings.gear_pot,
                     freadings.current_adc,
+                    freadings.supply_adc,
                 );
 
                 // The same step for the two servos (fixed point, then the f32 port): two

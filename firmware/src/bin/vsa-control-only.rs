@@ -19,9 +19,15 @@
 #![no_main]
 #![deny(missing_docs)]
 
-/// Link encoder, gear pot and current ADC readings the simulated channels present (read
-/// with volatile loads, as from a peripheral, so they are not constants to the compiler).
-static READINGS: [u16; 3] = [0, firmware::board::POT_AT_REST, model::sensors::ADC_MID];
+/// Link encoder, gear pot, current ADC and supply sense readings the simulated channels
+/// present (read with volatile loads, as from a peripheral, so they are not constants to
+/// the compiler).
+static READINGS: [u16; 4] = [
+    0,
+    firmware::board::POT_AT_REST,
+    model::sensors::ADC_MID,
+    firmware::board::SUPPLY_AT_REST,
+];
 
 /// Reading `i` of [`READINGS`].
 fn reading(i: usize) -> u16 {
@@ -145,7 +151,7 @@ mod app {
         let io = cx.local.io;
         let overruns = cx.local.overruns;
         let telemetry_tx = cx.local.telemetry_tx;
-        io.present(reading(0), reading(1), reading(2));
+        io.present(reading(0), reading(1), reading(2), reading(3));
         let (fault, sampled) = cx.shared.actuator.lock(|a| {
             let raw = io.read_inputs();
             let out = a.tick(&raw);

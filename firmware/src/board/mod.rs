@@ -41,7 +41,7 @@ pub use serial::{Serial, SerialRx, SerialTx};
 #[cfg(feature = "qemu")]
 pub use sim::force_bridge_off;
 #[cfg(feature = "qemu")]
-pub use sim::{at_rest, SimulatedIo, Simulation, POT_AT_REST, SERVED_CLUTCH_MM};
+pub use sim::{at_rest, SimulatedIo, Simulation, POT_AT_REST, SERVED_CLUTCH_MM, SUPPLY_AT_REST};
 
 use crate::run_config::{IdleMode, RunConfig};
 use model::servo::{Servo, TickOutput};

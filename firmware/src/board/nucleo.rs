@@ -19,6 +19,7 @@
 //! | link encoder B                           | PA7  | TIM3_CH2, AF2 (QEI), pull-up     | CN5 D11       |
 //! | motor current sense                      | PA0  | ADC1_IN0 (injected, TIM1 CC4)    | CN8 A0        |
 //! | gear-side potentiometer                  | PA1  | ADC1_IN1                         | CN8 A1        |
+//! | bridge supply sense (1 : 6.2 divider)    | PA4  | ADC1_IN4                         | CN8 A2        |
 //! | host link TX (USB VCP)                   | PA2  | USART2_TX, AF7                   | ST-LINK VCP   |
 //! | host link RX (USB VCP)                   | PA3  | USART2_RX, AF7, DMA1 stream 5    | ST-LINK VCP   |
 //! | or (`dynamixel-ttl`) Dynamixel data      | PA2  | USART2 half duplex, AF7, open drain | CN10 35 (SB13/SB14 open, docs/dynamixel.md) |
@@ -64,16 +65,19 @@
 //!   AS5047P's ABI) overrides them, an open-collector one needs them, and an unplugged
 //!   encoder reads still rather than counting noise. The ABI output is incremental (no index
 //!   wired): counts are relative to the link's position at power-up.
-//! - [`GearPot`] and [`CurrentAdc`]: ADC1, 12-bit, sample time 56 ADC cycles: (56 + 12) /
+//! - [`GearPot`], [`SupplyAdc`] and [`CurrentAdc`]: ADC1, 12-bit, sample time 56 ADC cycles: (56 + 12) /
 //!   22.5 MHz = 3.02 µs per conversion. 56 cycles allow a source impedance up to ≈ 57 kΩ at
 //!   12 bits (datasheet R_AIN formula, C_ADC 4 pF, R_ADC 6 kΩ).
-//!   The pot is a software-started regular conversion that polls EOC at most
+//!   The pot and the supply are software-started regular conversions that poll EOC at most
 //!   `ADC_POLL_LIMIT` = 1000 times (≥ 7× the polls a conversion needs, ≈ 20–60 µs; an
 //!   injected current conversion that interrupts it costs one more conversion time), then
 //!   aborts it (ADON off and on, 5 µs to stabilise) and returns [`SensorError::Timeout`]:
 //!   never hangs, never panics. It runs in a critical section (≈ 3 µs with interrupts
-//!   masked). The HAL's `Adc::convert` spins on STRT and EOC without bound (and panics if no
-//!   conversion started), so ADC1 is driven through the PAC.
+//!   masked, each). The supply sense's divider (52.3 kΩ over 10 kΩ, 8.4 kΩ source) reads
+//!   [`model::sensors::SUPPLY_MV_PER_COUNT`] mV a count (0.5 % high with these values:
+//!   the sense's gain error, docs/design.md §11). The HAL's `Adc::convert` spins on STRT
+//!   and EOC without bound (and panics if no conversion started), so ADC1 is driven through
+//!   the PAC.
 //!   The current is an injected conversion triggered by TIM1's CC4 event in every PWM
 //!   period, at the middle of the on-time less half the sampling window, so it reads the
 //!   average of the current ripple and does not jump with the phase of the tick in the
@@ -117,7 +121,7 @@ use core::convert::Infallible;
 use cortex_m::interrupt::{self, Mutex};
 use defmt_rtt as _;
 use drivers::tick_io::TickIo;
-use drivers::{AngleSensor, CurrentSensor, SensorError};
+use drivers::{AngleSensor, CurrentSensor, SensorError, SupplySensor};
 use model::control::Config as ControlConfig;
 use model::sensors::{ENCODER_COUNTS, POT_COUNTS};
 use model::servo::{Servo, TickOutput};
@@ -125,7 +129,9 @@ use model::supervisor::{Fault, SupervisorConfig};
 use model::{Design, Length};
 use stm32f4xx_hal::dma::StreamsTuple;
 use stm32f4xx_hal::{
-    gpio::{Alternate, Analog, Output, PinState, PushPull, PA0, PA1, PA10, PA6, PA7, PA8, PA9},
+    gpio::{
+        Alternate, Analog, Output, PinState, PushPull, PA0, PA1, PA10, PA4, PA6, PA7, PA8, PA9,
+    },
     prelude::*,
     qei::Qei,
     rcc::{Config, Enable, Reset},
@@ -166,6 +172,9 @@ const CURRENT_CHANNEL: u8 = 0;
 
 /// ADC1 channel of the gear-side potentiometer (PA1).
 const POT_CHANNEL: u8 = 1;
+
+/// ADC1 channel of the bridge supply sense (PA4).
+const SUPPLY_CHANNEL: u8 = 4;
 
 /// ADC cycles of one 12-bit conversion: 56 sampling + 12 conversion (RM0390, ADC:
 /// conversion time).
@@ -218,8 +227,9 @@ const WATCHDOG_UPDATE_WAIT_MS: u32 = 50;
 /// The board's sensors and motor driver, behind the `drivers` traits: the link-side
 /// angle (TIM3 quadrature encoder, 4096 counts per turn), the gear-side angle
 /// (potentiometer on ADC1, 1024 counts full scale), the motor current (shunt amplifier on
-/// ADC1, 12-bit raw) and the H-bridge (TIM1 CH1 PWM, direction and enable pins).
-pub type Io = TickIo<LinkEncoder, GearPot, CurrentAdc, MotorPwm, DirPin, EnPin>;
+/// ADC1, 12-bit raw), the bridge supply (divider on ADC1, 12-bit raw) and the H-bridge
+/// (TIM1 CH1 PWM, direction and enable pins).
+pub type Io = TickIo<LinkEncoder, GearPot, CurrentAdc, SupplyAdc, MotorPwm, DirPin, EnPin>;
 
 /// The H-bridge on its PWM channel and pins.
 pub type Bridge = drivers::HBridge<MotorPwm, DirPin, EnPin>;
@@ -342,6 +352,7 @@ fn init(device: pac::Peripherals) -> Parts<Nucleo> {
         &device.ADC_COMMON,
         gpioa.pa0.into_analog(),
         gpioa.pa1.into_analog(),
+        gpioa.pa4.into_analog(),
         &mut rcc,
     )
     .install();
@@ -369,7 +380,13 @@ fn init(device: pac::Peripherals) -> Parts<Nucleo> {
 
     Parts {
         clock: IndependentClock::start(tim2, prescaler),
-        io: TickIo::new(link, GearPot { _adc: () }, CurrentAdc { _adc: () }, bridge),
+        io: TickIo::new(
+            link,
+            GearPot { _adc: () },
+            CurrentAdc { _adc: () },
+            SupplyAdc { _adc: () },
+            bridge,
+        ),
         hooks,
         servo,
         service,
@@ -542,6 +559,17 @@ impl AngleSensor for GearPot {
     }
 }
 
+/// The bridge supply sense: ADC1 channel 4 (PA4) behind a 1 : 6.2 divider, 12-bit raw.
+pub struct SupplyAdc {
+    _adc: (),
+}
+
+impl SupplySensor for SupplyAdc {
+    fn read_raw(&mut self) -> Result<u16, SensorError> {
+        Adc1::convert_shared(SUPPLY_CHANNEL)
+    }
+}
+
 /// The motor current sense: ADC1 channel 0 (PA0), 12-bit raw, sampled by TIM1 in every PWM
 /// period (see the module docs). The raw reading with the bridge off is the sensor's
 /// offset: boot-time calibration measures it through [`CurrentSensor::read_raw`] before the
@@ -564,25 +592,27 @@ impl CurrentSensor for CurrentAdc {
     }
 }
 
-/// ADC1, shared by [`GearPot`] and [`CurrentAdc`] (installed once by `init`).
+/// ADC1, shared by [`GearPot`], [`SupplyAdc`] and [`CurrentAdc`] (installed once by `init`).
 static ADC1: Mutex<RefCell<Option<Adc1>>> = Mutex::new(RefCell::new(None));
 
-/// ADC1 with its two analog pins.
+/// ADC1 with its three analog pins.
 struct Adc1 {
     adc: pac::ADC1,
     _current: PA0<Analog>,
     _pot: PA1<Analog>,
+    _supply: PA4<Analog>,
 }
 
 impl Adc1 {
     /// Powers ADC1 up (RM0390, ADC): 12-bit, right-aligned, no scan, no DMA, no interrupt;
-    /// single software-started regular conversions (the pot), and one injected conversion
+    /// single software-started regular conversions (the pot, the supply), and one injected conversion
     /// of the current on each rising TIM1 CC4 event.
     fn new(
         adc: pac::ADC1,
         common: &pac::ADC_COMMON,
         current: PA0<Analog>,
         pot: PA1<Analog>,
+        supply: PA4<Analog>,
         rcc: &mut pac::RCC,
     ) -> Self {
         pac::ADC1::enable(rcc);
@@ -591,7 +621,8 @@ impl Adc1 {
         adc.cr1().write(|w| w.res().twelve_bit());
         adc.smpr2().write(|w| {
             w.smp(CURRENT_CHANNEL).cycles56();
-            w.smp(POT_CHANNEL).cycles56()
+            w.smp(POT_CHANNEL).cycles56();
+            w.smp(SUPPLY_CHANNEL).cycles56()
         });
         adc.sqr1().write(|w| w.l().set(0));
         // One injected conversion (JL = 0 converts JSQ4 alone).
@@ -611,6 +642,7 @@ impl Adc1 {
             adc,
             _current: current,
             _pot: pot,
+            _supply: supply,
         }
     }
 
@@ -645,7 +677,7 @@ impl Adc1 {
     /// `ADC_POLL_LIMIT` times.
     fn convert(&mut self, channel: u8) -> Result<u16, SensorError> {
         let adc = &self.adc;
-        // SAFETY: SQ1 takes a channel number 0..=18; `channel` is 0 or 1.
+        // SAFETY: SQ1 takes a channel number 0..=18; `channel` is 1 or 4.
         adc.sqr3().write(|w| unsafe { w.sq1().bits(channel) });
         // Clear stale flags (rc_w0), then start; SWSTART is ignored while ADON = 0, which
         // ends in the timeout below rather than a hang.

@@ -10,8 +10,8 @@
 use super::{BridgeOutputs, TickHooks, TickPlan};
 use core::sync::atomic::{AtomicU32, Ordering};
 use drivers::sim::SimTickIo;
-use model::control::Config;
-use model::sensors::{ADC_COUNTS, ADC_MID, ENCODER_COUNTS, POT_COUNTS};
+use model::control::{Config, MotorParams};
+use model::sensors::{ADC_COUNTS, ADC_MID, ENCODER_COUNTS, POT_COUNTS, SUPPLY_MV_PER_COUNT};
 use model::servo::{Servo, TickOutput};
 use model::supervisor::{Fault, SupervisorConfig};
 use model::{Design, Length};
@@ -20,16 +20,20 @@ use plant::scenario::{Action, BridgeLines, ScenarioEvent, ScenarioId, ScenarioRu
 use plant::served::ServedActuator;
 use service::Service;
 
-/// The emulated boards' actuator I/O: the link encoder, gear pot and current ADC of
-/// `model::sensors`, and the H-bridge, all on simulated lines.
+/// The emulated boards' actuator I/O: the link encoder, gear pot, current ADC and supply
+/// sense of `model::sensors`, and the H-bridge, all on simulated lines.
 pub type SimulatedIo = SimTickIo<ENCODER_COUNTS, POT_COUNTS, ADC_COUNTS>;
 
 /// Gear pot counts at mid-travel, where the actuator rests before the first tick.
 pub const POT_AT_REST: u16 = POT_COUNTS / 2;
 
+/// Supply sense counts of the AX-12A's supply (12 V: 2 400), before the first tick.
+pub const SUPPLY_AT_REST: u16 =
+    ((MotorParams::AX12A.supply_v.to_bits() * 1000) >> 32) as u16 / SUPPLY_MV_PER_COUNT;
+
 /// All lines low, the sensors presenting the actuator at rest until the first tick.
 pub fn at_rest() -> SimulatedIo {
-    match SimulatedIo::simulated(0, POT_AT_REST, ADC_MID) {
+    match SimulatedIo::simulated(0, POT_AT_REST, ADC_MID, SUPPLY_AT_REST) {
         Ok(io) => io,
         // The simulated lines cannot fail (`Infallible`).
         Err(_) => defmt::panic!("simulated H-bridge failed"),
@@ -196,7 +200,7 @@ impl TickHooks for Simulation {
                 (plant.tick(outputs(), servo.controller().schedule()), false)
             }
         };
-        io.present(r.link_encoder, r.gear_pot, r.current_adc);
+        io.present(r.link_encoder, r.gear_pot, r.current_adc, r.supply_adc);
         TickPlan { overrun }
     }
 

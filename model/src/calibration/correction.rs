@@ -364,6 +364,9 @@ impl Corrector {
             // saturated or open sense, which the raw test above already decided).
             c.clamp(i32::from(lo), i32::from(hi)) as u16
         };
+        // The supply sense as read (its gain is not calibrated: docs/design.md §11, "The
+        // supply the board measures").
+        out.supply_adc = raw.supply_adc;
         out.read_error = raw.read_error;
         true
     }
@@ -437,6 +440,7 @@ mod tests {
             link_encoder: enc,
             gear_pot: Some(pot),
             current_adc: adc,
+            supply_adc: None,
             read_error: None,
         }
     }

@@ -135,6 +135,7 @@ mod tests {
             link_encoder: enc,
             gear_pot: Some(pot),
             current_adc: adc,
+            supply_adc: None,
             read_error: None,
         }
     }

@@ -58,6 +58,7 @@ pub mod schedule;
 pub mod sine;
 pub mod sine_feedforward;
 pub mod speed_scale;
+pub mod supply_window;
 pub mod trajectory;
 pub mod validate;
 mod wide;

@@ -401,17 +401,21 @@ pub fn reply() -> impl Strategy<Value = Reply> {
             any::<u16>(),
             prop::option::of(any::<u16>()),
             any::<u16>(),
+            prop::option::of(any::<u16>()),
             any::<i16>()
         )
-            .prop_map(|(tick, link_encoder, gear_pot, current_adc, nudge)| {
-                Reply::Sensors(protocol::RawSensors {
-                    tick,
-                    link_encoder,
-                    gear_pot,
-                    current_adc,
-                    nudge_duty_permille: nudge,
-                })
-            }),
+            .prop_map(
+                |(tick, link_encoder, gear_pot, current_adc, supply_adc, nudge)| {
+                    Reply::Sensors(protocol::RawSensors {
+                        tick,
+                        link_encoder,
+                        gear_pot,
+                        current_adc,
+                        supply_adc,
+                        nudge_duty_permille: nudge,
+                    })
+                }
+            ),
         (
             any::<u8>(),
             prop::option::of((any::<u32>(), fault_code(), any::<i32>(), any::<u32>()))

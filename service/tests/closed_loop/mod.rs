@@ -74,6 +74,7 @@ impl Bench {
             link_encoder: r.link_encoder,
             gear_pot: Some(r.gear_pot),
             current_adc: r.current_adc,
+            supply_adc: Some(r.supply_adc),
             read_error: None,
         };
         let (out, demand) = a.control(&raw);
