@@ -554,6 +554,7 @@ mod tests {
     use super::*;
     use crate::supervisor::FaultCode;
     use crate::Length;
+    use fixed::types::I32F32;
 
     fn servo() -> Servo {
         let d = Design::paper();
@@ -688,5 +689,36 @@ mod tests {
         assert_eq!(s.supervisor().torque_capacity(), before);
         s.configure(&Config::paper(Length::from_int(5))).unwrap();
         assert!(s.supervisor().torque_capacity() < before);
+    }
+
+    #[test]
+    fn a_measured_supply_beyond_its_tolerance_is_configured_before_a_command() {
+        let s = servo();
+        let twelve = s.controller().config().motor.supply_v;
+        assert_eq!(twelve, I32F32::from_num(12));
+        let still = RestResistance::NEW;
+        let window = |counts: u16| {
+            let mut w = SupplyWindow::NEW;
+            for _ in 0..256 {
+                w.tick(Some(counts));
+            }
+            w
+        };
+        // No window yet, and 12.2 V (within 3 % of 12 V): the configuration stays.
+        assert!(s
+            .tracked_configuration(&SupplyWindow::NEW, &still, false)
+            .is_none());
+        assert!(s
+            .tracked_configuration(&window(2440), &still, false)
+            .is_none());
+        // 11 V (2 200 counts of 5 mV): the configuration in force with 11 V, nothing else.
+        let (config, supervision) = s
+            .tracked_configuration(&window(2200), &still, false)
+            .unwrap();
+        assert_eq!(config.motor.supply_v, I32F32::from_num(11));
+        let mut expected = *s.controller().config();
+        expected.motor.supply_v = I32F32::from_num(11);
+        assert_eq!(config, expected);
+        assert_eq!(supervision, *s.supervisor().config());
     }
 }

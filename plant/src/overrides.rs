@@ -823,9 +823,11 @@ mod tests {
             "current-gain=x0.95",
             "link-inertia=x3",
             "supply=10.5V",
+            "supply-sense-gain=x1.02",
         ])
         .unwrap();
         let pc = o.apply(&nominal);
+        assert_eq!(pc.sensors.supply_sense_gain, 1.02);
         assert_eq!(pc.motor.resistance_ohm, 1.4 * 8.0);
         assert_eq!(pc.sensors.pot_center_counts, 509.0);
         assert_eq!(pc.sensors.current_gain, 0.95);

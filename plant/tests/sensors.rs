@@ -266,3 +266,29 @@ fn pot_noise_and_bow_are_seeded_and_bounded() {
     );
     assert!(a.iter().any(|&c| c != 512), "the noise shows");
 }
+
+#[test]
+fn supply_sense_scale_gain_and_clamp() {
+    // 5 mV of supply a count: 12 V reads 2 400, 10.5 V 2 100, 12.6 V 2 520.
+    let mut p = plant_with(SensorConfig::default());
+    assert_eq!(read_at(&mut p, 0.0, 0.0).supply_adc, 2400);
+    for (volts, counts) in [
+        (10.5, 2100),
+        (12.6, 2520),
+        (11.1025, 2221),
+        (0.0, 0),
+        (30.0, 4095),
+    ] {
+        p.set_supply(volts);
+        assert_eq!(read_at(&mut p, 0.0, 0.0).supply_adc, counts, "{volts} V");
+    }
+    // A divider 2 % high reads 12 V as 12.24 V.
+    let mut p = plant_with(SensorConfig {
+        supply_sense_gain: 1.02,
+        ..SensorConfig::default()
+    });
+    assert_eq!(read_at(&mut p, 0.0, 0.0).supply_adc, 2448);
+    // Its fault hook, as the other channels'.
+    p.faults_mut().supply_adc = SensorFault::StuckAt(0);
+    assert_eq!(read_at(&mut p, 0.0, 0.0).supply_adc, 0);
+}

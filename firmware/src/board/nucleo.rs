@@ -74,7 +74,7 @@
 //!   aborts it (ADON off and on, 5 µs to stabilise) and returns [`SensorError::Timeout`]:
 //!   never hangs, never panics. It runs in a critical section (≈ 3 µs with interrupts
 //!   masked, each). The supply sense's divider (52.3 kΩ over 10 kΩ, 8.4 kΩ source) reads
-//!   [`model::sensors::SUPPLY_MV_PER_COUNT`] mV a count (0.5 % high with these values:
+//!   [`model::sensors::SUPPLY_MV_PER_COUNT`] mV a count (0.4 % low with these values:
 //!   the sense's gain error, docs/design.md §11). The HAL's `Adc::convert` spins on STRT
 //!   and EOC without bound (and panics if no conversion started), so ADC1 is driven through
 //!   the PAC.
