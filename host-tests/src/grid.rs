@@ -911,9 +911,16 @@ pub fn run(index: usize, case: &Case) -> Outcome {
     run_scenario(index, case, &case.scenario())
 }
 
-/// [`run`] on `scenario`, the case's own changed (e.g. a board without a supply sense).
+/// [`run`] on a board without a supply sense: the configured supply stays in force
+/// (docs/design.md §11, "The supply the board measures").
 #[must_use]
-pub fn run_scenario(index: usize, case: &Case, scenario: &Scenario) -> Outcome {
+pub fn run_without_supply_sense(index: usize, case: &Case) -> Outcome {
+    let mut sc = case.scenario();
+    sc.use_supply_sense = false;
+    run_scenario(index, case, &sc)
+}
+
+fn run_scenario(index: usize, case: &Case, scenario: &Scenario) -> Outcome {
     let metrics = harness::run(scenario, |_| {}).expect("grid case accepted");
     let t_opt_s = case.rigid().time_optimal_s(case.motion.size());
     Outcome {

@@ -179,9 +179,7 @@ fn a_loaded_move_on_a_sagging_supply_settles_in_time() {
          gear-friction=x2.9937,supply=10.7885V,current-offset=13.498,current-gain=0.99395,\
          pot-offset=-2.9585,link-inertia=x0.8189",
     );
-    let mut sc = case.scenario();
-    sc.use_supply_sense = false;
-    let o = grid::run_scenario(0, &case, &sc);
+    let o = grid::run_without_supply_sense(0, &case);
     println!(
         "{case}: settled in {:.0} ms (limit {:.0} ms)",
         o.settle_s() * 1e3,
@@ -199,9 +197,7 @@ fn a_loaded_move_on_a_sagging_supply_settles_in_time() {
 fn on_a_low_supply_the_measured_supply_lets_the_loop_settle_in_time() {
     for case in grid::on_a_low_supply() {
         let o = grid::run(0, &case);
-        let mut sc = case.scenario();
-        sc.use_supply_sense = false;
-        let without = grid::run_scenario(0, &case, &sc);
+        let without = grid::run_without_supply_sense(0, &case);
         println!(
             "{case}: settled in {:.0} ms, without the sense {:.0} ms (limit {:.0} ms)",
             o.settle_s() * 1e3,
