@@ -220,15 +220,15 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         }
         // Configuration time: the bound and the duty from the design and the datasheet; the
         // pot error table's floor for unvisited bins is the supervisor's fixed tolerance.
+        // The supply the configuration will hold: the resistance and back-EMF come out in
+        // the volts of the loop's duty scale (docs/design.md §11, "The supply the board
+        // measures").
+        let mut motor = self.service.config.motor;
+        motor.supply_v = self.actuator.lock(|a| a.supply_in_force(motor.supply_v));
         let cfg = CalibrationConfig {
             pot_tolerance_counts: self.service.supervision.pot_tolerance_counts,
-            ..CalibrationConfig::new(
-                &self.service.design,
-                &self.service.config.motor,
-                Sign::Plus,
-                ENCODER_COUNTS,
-            )
-            .map_err(|_| ErrorCode::OutOfRange)?
+            ..CalibrationConfig::new(&self.service.design, &motor, Sign::Plus, ENCODER_COUNTS)
+                .map_err(|_| ErrorCode::OutOfRange)?
         };
         self.actuator.lock(|a| {
             // Not during the correction layer's boot window (motor off, no checks).
@@ -268,7 +268,11 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
         cal: &Calibration,
         correction: Option<SensorCorrection>,
     ) -> Result<(), ErrorCode> {
-        let config = calibrated_config(self.service.config, cal);
+        let mut config = calibrated_config(self.service.config, cal);
+        // With the supply the run measured in (the calibration's start above).
+        config.motor.supply_v = self
+            .actuator
+            .lock(|a| a.supply_in_force(config.motor.supply_v));
         let correction = correction.unwrap_or_else(|| {
             crate::correction::sensor_correction(cal, &self.service.supervision)
         });
