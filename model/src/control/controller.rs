@@ -11,7 +11,7 @@ use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Q16_ONE};
 use super::hunt::Hunt;
 use super::move_drive::MoveDrive;
 use super::move_duration;
-use super::schedule::{Schedule, HELD_DAMPING_DEADBAND_SHIFT, TICKS_PER_S};
+use super::schedule::{Schedule, HELD_DAMPING_DEADBAND_SHIFT, IMPACT_MATCH_SHIFT, TICKS_PER_S};
 use super::sine_feedforward::FeedForward;
 use super::speed_scale::SpeedScale;
 use super::trajectory::{Command, Reference, Trajectory};
@@ -859,7 +859,9 @@ impl Window {
         }
         // Free-play impacts: current that drives the gear across the free play beyond the
         // impact speed would hit the link with more than τ_lim; above that relative speed
-        // no more current that way (the zero-current duty is the back-EMF's). Only where the
+        // the duty goes no further that way than the back-EMF of a speed three quarters of
+        // the way from the gear's to the link's (the observer lags a duty step: at the
+        // gear's own the gear kept braking into a link thrown ahead). Only where the
         // beams carry torque now, on the side of τ̂, may the gear close on the link: a
         // bouncing link leaves the wall it was pushed by, and the gear's next push would hit
         // it. The bound carries the current-based estimate's error, which grows with |i|
@@ -869,11 +871,14 @@ impl Window {
             let contact_bound = s
                 .contact_torque_q16
                 .saturating_add(s.contact_per_amp.apply(current.saturating_abs()));
-            let zero_current = emf.clamp(lo, hi);
+            let emf_link = s.duty_per_w.apply(w_link);
+            let matched = emf_link
+                .saturating_sub(emf_link.saturating_sub(emf) >> IMPACT_MATCH_SHIFT)
+                .clamp(lo, hi);
             if closing > 0 && tau <= contact_bound {
-                hi = hi.min(zero_current);
+                hi = hi.min(matched);
             } else if closing < 0 && tau >= -contact_bound {
-                lo = lo.max(zero_current);
+                lo = lo.max(matched);
             }
         }
         Window { hi, lo, hi_i, lo_i }

@@ -67,6 +67,13 @@ pub const HELD_DAMPING_DEADBAND_SHIFT: u32 = 3;
 /// while the beams take up the impact. Measured on the acceptance grid (250 nominal
 /// cases): 1.0 leaves 17 runs above σ_allow, 0.6 leaves 6.
 pub const IMPACT_SPEED_FRACTION: I32F32 = I32F32::lit("0.6");
+/// Beyond the impact speed the duty is held at the back-EMF of a gear speed this far from
+/// the gear's own towards the link's, as a right shift of what is left: 2, three quarters
+/// of the way (docs/design.md §11, "Free-play impacts"). Measured on 2 × 30 seeds: the
+/// gear's own speed (no current, the gear coasts) left 3 nominal and 121 off-nominal runs
+/// of 15 000 above σ_allow; half the way 0 and 98, three quarters 0 and 81, all the way
+/// 0 and 84, each costing the off-nominal grid more overshoot.
+pub const IMPACT_MATCH_SHIFT: u32 = 2;
 
 /// Corner of the torque feedback's high-pass, in ω_c: the P term of a loaded link acts on
 /// the link error less the beams' torque error above it, (τ̂ − τ_ref)/k (docs/design.md
