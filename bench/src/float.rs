@@ -42,9 +42,9 @@ use model::control::hunt::Hunt;
 use model::control::schedule::{
     CONTACT_CURRENT_TOLERANCE, CONTACT_TORQUE_NM, COULOMB_RAMP_RAD_S,
     CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM,
-    HELD_DAMPING_DEADBAND_SHIFT, IMPACT_SPEED_FRACTION, MOVE_OBSERVER_RATIO, OBSERVER_RATIO,
-    PRESSED_LOAD_NM, RESISTANCE_LOW, RESISTANCE_TOLERANCE, REST_LOAD_NM, REST_TORQUE_NM,
-    REST_ZONE_FREE_PLAYS, SUPPLY_TOLERANCE, TORQUE_FEEDBACK_CORNER,
+    HELD_DAMPING_DEADBAND_SHIFT, IMPACT_MATCH_SHIFT, IMPACT_SPEED_FRACTION, MOVE_OBSERVER_RATIO,
+    OBSERVER_RATIO, PRESSED_LOAD_NM, RESISTANCE_LOW, RESISTANCE_TOLERANCE, REST_LOAD_NM,
+    REST_TORQUE_NM, REST_ZONE_FREE_PLAYS, SUPPLY_TOLERANCE, TORQUE_FEEDBACK_CORNER,
 };
 use model::control::{dash, move_drive, Command, Config, Schedule};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
@@ -1078,12 +1078,15 @@ impl FloatController {
         }
         let contact_bound = s.contact_torque + s.contact_per_amp * libm::fabsf(current);
         let closing = w_gear - self.w_link;
-        let zero_current = emf.clamp(lo, hi);
+        // The back-EMF of a speed most of the way from the gear's to the link's.
+        let emf_link = s.duty_per_w * self.w_link;
+        let matched =
+            (emf_link - (emf_link - emf) / (1u32 << IMPACT_MATCH_SHIFT) as f32).clamp(lo, hi);
         if tau <= contact_bound && closing > s.impact_speed {
-            hi = hi.min(zero_current);
+            hi = hi.min(matched);
         }
         if tau >= -contact_bound && closing < -s.impact_speed {
-            lo = lo.max(zero_current);
+            lo = lo.max(matched);
         }
         let mut u = u;
         if r.velocity == 0.0

@@ -115,6 +115,38 @@ impl RigidActuator {
     }
 }
 
+/// Three nominal grid cases whose loaded raw step at a stiff setting threw the link ahead
+/// of the gear into the free play as braking began, the load helping it on, and whose gear,
+/// braking into it at the back-EMF duty of its own speed, met it at 1.03, 1.05 and 1.08
+/// σ_allow (docs/design.md §11, "Free-play impacts"): seed 205 #40, seed 215 #222 and seed
+/// 217 #168, their draws written out in full.
+#[must_use]
+pub fn braking_into_a_link_thrown_ahead() -> [Case; 3] {
+    [
+        Case::written(
+            1849,
+            3.109_497_534_570_885_5e-3,
+            0.188_719_54,
+            Motion::Step(0.219_854_980_950_484_48),
+            "",
+        ),
+        Case::written(
+            1665,
+            4.116_794_338_228_136e-3,
+            0.264_037_4,
+            Motion::Step(0.460_432_278_725_407_4),
+            "",
+        ),
+        Case::written(
+            1077,
+            2.432_886_483_840_433e-3,
+            0.171_360_21,
+            Motion::Step(0.218_618_129_570_478_94),
+            "",
+        ),
+    ]
+}
+
 /// Two off-nominal grid cases on a low supply (10.5 and 11.2 V against 12 V configured)
 /// that settle late when the controller keeps the configured supply and in time once it
 /// takes the one the board measures (docs/design.md §11, "The supply the board measures"):

@@ -149,6 +149,16 @@ fn raw_steps_of_a_link_bouncing_in_the_free_play_stay_within_the_beams() {
     ]);
 }
 
+/// Loaded raw steps of a nominal actuator at 1.1–1.8 mm: the load throws the link ahead of
+/// the gear as braking begins, and the gear met it at 1.03–1.08 σ_allow while the impact
+/// limit held its duty at the back-EMF of its own speed, which its observer read low after
+/// the duty step. Held at the back-EMF of a speed three quarters of the way to the link's,
+/// the gear meets it at 0.75, 0.79 and 0.66 σ_allow (design §11, "Free-play impacts").
+#[test]
+fn a_link_thrown_ahead_by_its_load_meets_the_braking_gear_within_the_beams() {
+    assert_within_the_beams(&grid::braking_into_a_link_thrown_ahead());
+}
+
 /// Each case keeps the beams below σ_allow and latches no fault.
 fn assert_within_the_beams(cases: &[grid::Case]) {
     for case in cases {
