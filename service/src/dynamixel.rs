@@ -49,6 +49,11 @@ const AX_CW: i32 = 1 << 10;
 /// Present Temperature without a sensor, °C (the in-memory backend's value too).
 const NO_SENSOR_TEMPERATURE: i32 = 30;
 
+/// Volts (I32F32) → 0.1 V, rounded.
+fn volts_to_dv(v: fixed::types::I32F32) -> i32 {
+    div_round(i64::from(q32_to_micro(v.to_bits())), 100_000) as i32
+}
+
 /// Rounded `a / b` for b > 0, half away from zero.
 const fn div_round(a: i64, b: i64) -> i64 {
     if a >= 0 {
@@ -343,6 +348,15 @@ impl<M: Mutex<T = Actuator>> ServoBackend<'_, '_, M> {
             .lock(|a| a.servo.state() == ServoState::Enabled)
     }
 
+    /// The supply the board measured, 0.1 V (Present Voltage's unit), if it has a sense
+    /// and a window has passed.
+    fn measured_supply_dv(&mut self) -> Option<i32> {
+        self.dev
+            .actuator
+            .lock(|a| a.measured_supply())
+            .map(volts_to_dv)
+    }
+
     /// The measured link angle, µrad.
     fn link_urad(&mut self) -> i32 {
         let bits = self.dev.actuator.lock(|a| a.link_angle);
@@ -449,15 +463,9 @@ impl<M: Mutex<T = Actuator>> Backend for ServoBackend<'_, '_, M> {
                 .dev
                 .actuator
                 .lock(|a| i32::from(a.servo.controller().trajectory().is_moving())),
-            Field::PresentVoltage => {
-                // The supply the board measures; the configured one without a sense.
-                let v = self
-                    .dev
-                    .actuator
-                    .lock(|a| a.measured_supply())
-                    .unwrap_or(self.dev.service.config().motor.supply_v);
-                div_round(i64::from(q32_to_micro(v.to_bits())), 100_000) as i32
-            }
+            Field::PresentVoltage => self
+                .measured_supply_dv()
+                .unwrap_or_else(|| volts_to_dv(self.dev.service.config().motor.supply_v)),
             Field::PresentTemperature => NO_SENSOR_TEMPERATURE,
             Field::ClutchLength => self.dev.actuator.lock(|a| {
                 let l = a.servo.controller().schedule().setting().length();
@@ -595,7 +603,15 @@ impl<M: Mutex<T = Actuator>> Backend for ServoBackend<'_, '_, M> {
 
     fn hardware_errors(&mut self) -> u8 {
         let faults = self.dev.actuator.lock(|a| a.servo.faults());
-        let mut bits = 0;
+        // The supply the board measures outside the voltage limits (stored, 0.1 V).
+        let (lo, hi) = (
+            self.regs.store.get(Field::MinVoltageLimit),
+            self.regs.store.get(Field::MaxVoltageLimit),
+        );
+        let mut bits = match self.measured_supply_dv() {
+            Some(dv) if dv < lo || dv > hi => hardware::INPUT_VOLTAGE,
+            _ => 0,
+        };
         for code in FaultCode::ALL {
             if !faults.contains(code) {
                 continue;

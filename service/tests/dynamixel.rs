@@ -99,6 +99,32 @@ fn present_voltage_is_the_supply_the_board_measures() {
     assert_eq!(v, [126]);
 }
 
+/// A measured supply outside the voltage limits (6.0–14.0 V by default, registers 12 and
+/// 13) shows as the input-voltage bit in every status, as on the servo; back inside, it
+/// goes.
+#[test]
+fn a_supply_outside_the_voltage_limits_raises_the_input_voltage_bit() {
+    let mut b = Bench::new(0.0);
+    b.run(300);
+    let ping = |b: &mut Bench| b.ask(1, ins::PING, &[]).map(|(_, err, _)| err);
+    assert_eq!(ping(&mut b), Some(0), "12 V is within 6.0–14.0 V");
+    b.lp.plant().set_supply(14.6);
+    b.run(600);
+    assert_eq!(ping(&mut b), Some(error::INPUT_VOLTAGE));
+    // A limit lowered below the supply (torque off: an EEPROM write) raises it as well.
+    b.lp.plant().set_supply(12.0);
+    b.run(600);
+    assert_eq!(ping(&mut b), Some(0));
+    let (_, err, _) = b.ask(1, ins::WRITE, &[13, 115]).expect("a status");
+    assert_eq!(
+        err,
+        error::INPUT_VOLTAGE,
+        "Max Voltage Limit 11.5 V under 12 V"
+    );
+    let (_, err, v) = b.ask(1, ins::READ, &[42, 1]).expect("a status");
+    assert_eq!((err, v), (error::INPUT_VOLTAGE, vec![120]));
+}
+
 #[test]
 fn it_answers_as_an_ax12a_with_the_defaults() {
     let mut b = Bench::new(0.0);
