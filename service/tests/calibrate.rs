@@ -25,6 +25,37 @@ fn progress(b: &mut Bench) -> CalibrationProgress {
     }
 }
 
+/// Steps a started calibration to its end (its progress never going back); the
+/// calibration it put in force.
+fn run_to_its_end(b: &mut Bench) -> protocol::Calibration {
+    let mut last = 0;
+    let mut ticks = 0;
+    while let CalibrationProgress::Running { percent, .. } = progress(b) {
+        assert!(percent >= last, "progress went back: {last} → {percent}");
+        last = percent;
+        b.step();
+        ticks += 1;
+        assert!(ticks < 30_000, "still running after {ticks} ticks");
+    }
+    let r = report(b);
+    assert_eq!(r.progress, CalibrationProgress::Done, "after {ticks} ticks");
+    let c = r.calibration.expect("a calibration in force");
+    println!("{ticks} ticks: {c:?}");
+    c
+}
+
+/// The simulated AX-12A's motor, 8 Ω and 1.94 V·s/rad, within 5 %.
+fn assert_reads_the_ax12a_motor(c: &protocol::Calibration) {
+    assert!(
+        (c.resistance_mohm as f64 / 8000.0 - 1.0).abs() < 0.05,
+        "{c:?}"
+    );
+    assert!(
+        (c.back_emf_uv_s_per_rad as f64 / 1.94e6 - 1.0).abs() < 0.05,
+        "{c:?}"
+    );
+}
+
 #[test]
 fn a_calibration_runs_from_disabled_and_its_result_drives_the_controller() {
     let mut b = Bench::new(0.0);
@@ -43,19 +74,7 @@ fn a_calibration_runs_from_disabled_and_its_result_drives_the_controller() {
     assert_eq!(b.ask(nudge), busy);
     assert_eq!(b.ask(Request::Enable), busy);
     assert_eq!(b.ask(Request::Calibrate { start: true }), busy);
-    let mut last = 0;
-    let mut ticks = 0;
-    while let CalibrationProgress::Running { percent, .. } = progress(&mut b) {
-        assert!(percent >= last, "progress went back: {last} → {percent}");
-        last = percent;
-        b.step();
-        ticks += 1;
-        assert!(ticks < 30_000, "still running after {ticks} ticks");
-    }
-    let r = report(&mut b);
-    assert_eq!(r.progress, CalibrationProgress::Done, "after {ticks} ticks");
-    let c = r.calibration.expect("a calibration in force");
-    println!("{ticks} ticks: {c:?}");
+    let c = run_to_its_end(&mut b);
     // The served plant is the nominal AX-12A actuator (8 Ω, 1.94 V·s/rad, wired as
     // the firmware expects, offset-free current sense).
     assert_eq!(
@@ -63,14 +82,7 @@ fn a_calibration_runs_from_disabled_and_its_result_drives_the_controller() {
         (1, 1, 1)
     );
     assert!(c.current_offset_counts.abs() <= 2, "{c:?}");
-    assert!(
-        (c.resistance_mohm as f64 / 8000.0 - 1.0).abs() < 0.05,
-        "{c:?}"
-    );
-    assert!(
-        (c.back_emf_uv_s_per_rad as f64 / 1.94e6 - 1.0).abs() < 0.05,
-        "{c:?}"
-    );
+    assert_reads_the_ax12a_motor(&c);
     assert_eq!(c.stiffness_mnm_per_rad, None);
     // In force: the controller's motor model and link inertia are the measured ones.
     let m = b.service.config().motor;
@@ -127,23 +139,7 @@ fn a_calibration_on_a_low_supply_measures_the_motor_in_the_measured_volts() {
         b.step();
     }
     assert_eq!(b.ask(Request::Calibrate { start: true }), Reply::Ok);
-    let mut ticks = 0;
-    while let CalibrationProgress::Running { .. } = progress(&mut b) {
-        b.step();
-        ticks += 1;
-        assert!(ticks < 30_000, "still running after {ticks} ticks");
-    }
-    let r = report(&mut b);
-    assert_eq!(r.progress, CalibrationProgress::Done, "after {ticks} ticks");
-    let c = r.calibration.expect("a calibration in force");
-    assert!(
-        (c.resistance_mohm as f64 / 8000.0 - 1.0).abs() < 0.05,
-        "{c:?}"
-    );
-    assert!(
-        (c.back_emf_uv_s_per_rad as f64 / 1.94e6 - 1.0).abs() < 0.05,
-        "{c:?}"
-    );
+    assert_reads_the_ax12a_motor(&run_to_its_end(&mut b));
     let supply = b.service.config().motor.supply_v.to_num::<f64>();
     assert!((supply - 10.8).abs() < 0.01, "{supply} V in force");
 }
