@@ -9,10 +9,10 @@ use crate::firmware;
 /// probe-rs's name for the Nucleo-F446RE's MCU.
 pub const CHIP: &str = "STM32F446RETx";
 
-/// Builds the Nucleo firmware and runs it with `probe-rs run` (flash, reset, print the
-/// decoded defmt-rtt log until Ctrl-C).
-pub fn run() -> Result<ExitCode> {
-    let elf = firmware::build(Board::NucleoF446re)?;
+/// Builds the Nucleo firmware (with its optional `features`) and runs it with `probe-rs
+/// run` (flash, reset, print the decoded defmt-rtt log until Ctrl-C).
+pub fn run(features: &[String]) -> Result<ExitCode> {
+    let elf = firmware::build_with(Board::NucleoF446re, features)?;
     if Command::new("probe-rs").arg("--version").output().is_err() {
         bail!(
             "probe-rs is not installed. Install it with\n    cargo install probe-rs-tools --locked\n\

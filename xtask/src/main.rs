@@ -92,7 +92,12 @@ enum Task {
         board: Board,
     },
     /// Build the Nucleo-F446RE firmware and run it on the board with probe-rs.
-    Flash,
+    Flash {
+        /// The board's optional features, comma-separated: `supply-sense` (the bridge
+        /// supply's divider wired to PA4), `dynamixel-ttl` (a Dynamixel TTL bus on PA2).
+        #[arg(long, value_delimiter = ',', value_parser = ["supply-sense", "dynamixel-ttl"])]
+        features: Vec<String>,
+    },
     /// Decode a raw defmt log (e.g. QEMU's stdout saved by `vsa --qemu --qemu-log FILE`)
     /// with the ELF that wrote it.
     DecodeLog {
@@ -212,7 +217,7 @@ fn dispatch(task: Task) -> Result<ExitCode> {
         } else {
             ExitCode::FAILURE
         }),
-        Task::Flash => flash::run(),
+        Task::Flash { features } => flash::run(&features),
         Task::E2e { board } => board_check(board, e2e::run),
         Task::Persistence { board } => board_check(board, persistence::run),
         Task::Calibration { board } => board_check(board, calibrate::check),

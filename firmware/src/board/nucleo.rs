@@ -19,7 +19,7 @@
 //! | link encoder B                           | PA7  | TIM3_CH2, AF2 (QEI), pull-up     | CN5 D11       |
 //! | motor current sense                      | PA0  | ADC1_IN0 (injected, TIM1 CC4)    | CN8 A0        |
 //! | gear-side potentiometer                  | PA1  | ADC1_IN1                         | CN8 A1        |
-//! | bridge supply sense (1 : 6.2 divider)    | PA4  | ADC1_IN4                         | CN8 A2        |
+//! | bridge supply sense (1 : 6.2 divider; `supply-sense` builds) | PA4  | ADC1_IN4          | CN8 A2        |
 //! | host link TX (USB VCP)                   | PA2  | USART2_TX, AF7                   | ST-LINK VCP   |
 //! | host link RX (USB VCP)                   | PA3  | USART2_RX, AF7, DMA1 stream 5    | ST-LINK VCP   |
 //! | or (`dynamixel-ttl`) Dynamixel data      | PA2  | USART2 half duplex, AF7, open drain | CN10 35 (SB13/SB14 open, docs/dynamixel.md) |
@@ -175,6 +175,10 @@ const POT_CHANNEL: u8 = 1;
 
 /// ADC1 channel of the bridge supply sense (PA4).
 const SUPPLY_CHANNEL: u8 = 4;
+
+/// Whether the supply's divider is wired (`supply-sense`): a floating PA4 reads anything,
+/// so without it [`SupplyAdc`] reads nothing and the configured supply stays in force.
+const SUPPLY_SENSE_FITTED: bool = cfg!(feature = "supply-sense");
 
 /// ADC cycles of one 12-bit conversion: 56 sampling + 12 conversion (RM0390, ADC:
 /// conversion time).
@@ -559,13 +563,17 @@ impl AngleSensor for GearPot {
     }
 }
 
-/// The bridge supply sense: ADC1 channel 4 (PA4) behind a 1 : 6.2 divider, 12-bit raw.
+/// The bridge supply sense: ADC1 channel 4 (PA4) behind a 1 : 6.2 divider, 12-bit raw;
+/// only in a build with `supply-sense` ([`SUPPLY_SENSE_FITTED`]).
 pub struct SupplyAdc {
     _adc: (),
 }
 
 impl SupplySensor for SupplyAdc {
     fn read_raw(&mut self) -> Result<u16, SensorError> {
+        if !SUPPLY_SENSE_FITTED {
+            return Err(SensorError::Device);
+        }
         Adc1::convert_shared(SUPPLY_CHANNEL)
     }
 }

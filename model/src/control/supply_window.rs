@@ -10,7 +10,9 @@
 //! replaces the configured supply when the two differ by more than
 //! [`TOLERANCE_PERMILLE`] (`Servo::tracked_configuration`; the caller prepares the new
 //! schedule outside the tick). A board without a supply sense, or whose reads fail, gives
-//! no readings: the configured supply stays in force.
+//! no readings, and a mean outside [`PLAUSIBLE_PERCENT`] of the configured supply is taken
+//! for a broken sense (an open divider reads 0 or full scale) or an unpowered bridge: the
+//! configured supply stays in force.
 
 use fixed::types::I32F32;
 
@@ -29,9 +31,10 @@ const _: () = assert!(1 << WINDOW_SHIFT == WINDOW_TICKS as u32);
 /// off, 20 leaves the nominal grid unchanged only to the count's rounding, 5 costs it.
 pub const TOLERANCE_PERMILLE: i64 = 30;
 
-/// Least supply taken as a measurement, V: below it the bridge is unpowered (a board on
-/// USB alone) and the configured supply stays (the configuration accepts 1…100 V).
-pub const MIN_SUPPLY_V: i32 = 1;
+/// How far from the configured supply, in per cent either way, a measurement is taken as
+/// one: 12 V configured, 6…18 V. Beyond it the bridge is unpowered (a board on USB alone)
+/// or the sense broken (an open divider reads 0 V or its 20.5 V full scale).
+pub const PLAUSIBLE_PERCENT: i64 = 50;
 
 /// The supply windows: the running sum and the last full window's.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -73,17 +76,17 @@ impl SupplyWindow {
     }
 
     /// The measured supply, when it differs from `configured` (V) by more than
-    /// [`TOLERANCE_PERMILLE`] and is at least [`MIN_SUPPLY_V`]; `None` otherwise (no
-    /// window yet, within the tolerance, or an unpowered bridge). Called before a command.
+    /// [`TOLERANCE_PERMILLE`] but not beyond [`PLAUSIBLE_PERCENT`]; `None` otherwise (no
+    /// window yet, within the tolerance, or no plausible reading). Called before a command.
     #[must_use]
     pub fn differs_from(&self, configured: I32F32) -> Option<I32F32> {
         let v = self.volts()?;
-        if v < I32F32::from_num(MIN_SUPPLY_V) {
-            return None;
-        }
         let (m, c) = (i128::from(v.to_bits()), i128::from(configured.to_bits()));
-        // |v − c| > tol·c, in integers: 1000·|v − c| > tol·c.
-        ((m - c).abs() * 1000 > i128::from(TOLERANCE_PERMILLE) * c.abs()).then_some(v)
+        let off = (m - c).abs();
+        // tol·c < |v − c| ≤ plausible·c, in integers (c > 0: the configuration's 1…100 V).
+        (off * 1000 > i128::from(TOLERANCE_PERMILLE) * c
+            && off * 100 <= i128::from(PLAUSIBLE_PERCENT) * c)
+            .then_some(v)
     }
 }
 
@@ -154,8 +157,19 @@ mod tests {
             filled(2100, 256).differs_from(twelve),
             Some(I32F32::from_num(10.5))
         );
-        // An unpowered bridge (a board on USB alone) keeps the configured supply.
-        assert_eq!(filled(100, 256).differs_from(twelve), None);
+        // 6 and 18 V are the plausible bounds; an unpowered bridge (a board on USB alone)
+        // or an open divider (0 or 20.475 V) keeps the configured supply.
+        assert_eq!(
+            filled(1200, 256).differs_from(twelve),
+            Some(I32F32::from_num(6))
+        );
+        assert_eq!(
+            filled(3600, 256).differs_from(twelve),
+            Some(I32F32::from_num(18))
+        );
+        for broken in [0, 100, 1199, 3601, 4095] {
+            assert_eq!(filled(broken, 256).differs_from(twelve), None, "{broken}");
+        }
         assert_eq!(SupplyWindow::NEW.differs_from(twelve), None);
     }
 }
