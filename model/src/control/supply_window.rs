@@ -26,8 +26,8 @@ const _: () = assert!(1 << WINDOW_SHIFT == WINDOW_TICKS as u32);
 
 /// Relative difference from the configured supply, in thousandths, below which the
 /// measurement leaves the configuration alone: the sense's own gain error (the divider's
-/// resistors, and the ADC's reference, the board's 3.3 V rail, ±2 %) must not move a
-/// correct configuration. Measured on the grids (docs/design.md §11): with the sense 2 %
+/// resistors, and the ADC's reference, the board's 3.3 V regulator, good to a per cent or
+/// two) must not move a correct configuration. Measured on the grids (docs/design.md §11): with the sense 2 %
 /// off, 20 leaves the nominal grid unchanged only to the count's rounding, 5 costs it.
 pub const TOLERANCE_PERMILLE: i64 = 30;
 
