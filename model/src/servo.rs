@@ -117,7 +117,7 @@ pub struct TickInput {
     /// Current ADC, raw counts.
     pub current_adc: u16,
     /// Supply sense, raw counts ([`crate::sensors::SUPPLY_MV_PER_COUNT`]), if the board has
-    /// one and its read succeeded: advisory, read after the tick
+    /// one and its read succeeded: advisory, averaged after the tick
     /// ([`crate::control::supply_window`]); a failed read is left out, not a fault.
     pub supply_adc: Option<u16>,
     /// A driver failed (its reading is the last good one).
