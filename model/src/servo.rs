@@ -379,10 +379,8 @@ impl Servo {
         offset_calibrated: bool,
     ) -> Option<(Config, SupervisorConfig)> {
         let mut config = *self.controller.config();
-        let measured = supply.differs_from(config.motor.supply_v);
-        if let Some(v) = measured {
-            config.motor.supply_v = v;
-        }
+        let configured = config.motor.supply_v;
+        config.motor.supply_v = supply.in_force(configured);
         let resistance = window.differs_from(
             config.motor.supply_v,
             config.motor.resistance_ohm,
@@ -391,7 +389,8 @@ impl Servo {
         if let Some(r) = resistance {
             config.motor.resistance_ohm = r;
         }
-        (measured.is_some() || resistance.is_some()).then(|| (config, *self.supervisor.config()))
+        (config.motor.supply_v != configured || resistance.is_some())
+            .then(|| (config, *self.supervisor.config()))
     }
 
     /// Takes a configuration prepared ahead of time (its schedule and thresholds, a copy,

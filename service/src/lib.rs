@@ -311,12 +311,11 @@ impl Actuator {
         self.supply.volts()
     }
 
-    /// The supply a configuration now made holds, given the `configured` one: the measured
-    /// one where it differs beyond the sense's tolerance ([`SupplyWindow::differs_from`]),
-    /// as `Servo::tracked_configuration` takes it before a command.
+    /// The supply a configuration made now holds, given the `configured` one
+    /// ([`SupplyWindow::in_force`], as `Servo::tracked_configuration` takes it).
     #[must_use]
     pub fn supply_in_force(&self, configured: fixed::types::I32F32) -> fixed::types::I32F32 {
-        self.supply.differs_from(configured).unwrap_or(configured)
+        self.supply.in_force(configured)
     }
 
     /// [`Actuator::after_tick`], and the sample (if one is due) into `queue`, the link's

@@ -88,6 +88,13 @@ impl SupplyWindow {
             && off * 100 <= i128::from(PLAUSIBLE_PERCENT) * c)
             .then_some(v)
     }
+
+    /// The supply a configuration made now holds, given the `configured` one (V): the
+    /// measured one where [`SupplyWindow::differs_from`] gives it, else `configured`.
+    #[must_use]
+    pub fn in_force(&self, configured: I32F32) -> I32F32 {
+        self.differs_from(configured).unwrap_or(configured)
+    }
 }
 
 impl Default for SupplyWindow {
