@@ -14,7 +14,7 @@
 //! current bound (half their capacity at the longest clutch length, checked every tick by
 //! the sequence) and the supervisor's current-based torque check against the capacity.
 
-use model::calibration::correction::{SensorCorrection, Sign, POT_CENTER};
+use model::calibration::correction::{Sign, POT_CENTER};
 use model::calibration::sequence::{
     Calibration as Sequence, CalibrationConfig, CalibrationResult, Failure, Progress,
 };
@@ -182,9 +182,7 @@ impl Service {
             return;
         };
         let cal = record(&result);
-        let applied = self
-            .device(actuator)
-            .apply_calibration(&cal, Some(result.correction));
+        let applied = self.device(actuator).apply_calibration(&cal, Some(&result));
         let outcome = applied.and_then(|()| match self.persist_calibration(cal, actuator) {
             // In force without a store (a board without flash): the set keeps it.
             Ok(()) | Err(ErrorCode::Storage) => Ok(()),
@@ -262,20 +260,24 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
 
     /// Puts `cal` in force: the motor's resistance, back-EMF and gear friction and the link
     /// inertia for the controller, its pot error table for the supervisor, the sensor correction
-    /// (`correction`, else the one `cal` gives).
+    /// (`run`'s, else the one `cal` gives). The supply in force is the one `run`'s figures are
+    /// in (the one its start took, `calibrate`); for a stored calibration, the one in force.
     pub(crate) fn apply_calibration(
         &mut self,
         cal: &Calibration,
-        correction: Option<SensorCorrection>,
+        run: Option<&CalibrationResult>,
     ) -> Result<(), ErrorCode> {
         let mut config = calibrated_config(self.service.config, cal);
-        // With the supply the run measured in (the calibration's start above).
-        config.motor.supply_v = self
-            .actuator
-            .lock(|a| a.supply_in_force(config.motor.supply_v));
-        let correction = correction.unwrap_or_else(|| {
-            crate::correction::sensor_correction(cal, &self.service.supervision)
-        });
+        config.motor.supply_v = match run {
+            Some(r) => r.supply_v,
+            None => self
+                .actuator
+                .lock(|a| a.supply_in_force(config.motor.supply_v)),
+        };
+        let correction = run.map_or_else(
+            || crate::correction::sensor_correction(cal, &self.service.supervision),
+            |r| r.correction,
+        );
         // Checked before anything changes; installing it starts the layer's boot window
         // (the encoder aligned to the pot again in the new frame, motor off).
         model::calibration::correction::Corrector::new(&correction)
@@ -310,6 +312,7 @@ impl<M: Mutex<T = Actuator>> ServiceDevice<'_, M> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use model::calibration::correction::SensorCorrection;
     use model::calibration::pot_error::PotErrorTable;
     use store::Record;
 
@@ -330,6 +333,7 @@ mod tests {
             pot_error,
             free_play_pot_centi: 100,
             current_noise_centi: 100,
+            supply_v: fixed::types::I32F32::from_num(12),
         };
         let cal = record(&r);
         assert_eq!(cal.pot_error_centi, Some(pot_error.centi));

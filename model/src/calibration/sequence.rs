@@ -319,6 +319,9 @@ pub struct CalibrationResult {
     pub free_play_pot_centi: i32,
     /// Standard deviation of the current at rest, ADC counts ×100.
     pub current_noise_centi: i32,
+    /// The bridge supply the resistance and back-EMF are read in, V (the run's
+    /// [`CalibrationConfig::supply_v`]).
+    pub supply_v: I32F32,
 }
 
 /// Progress, for the status and the progress bar.
@@ -1017,6 +1020,7 @@ impl Calibration {
             pot_error,
             free_play_pot_centi: clamp32(fp),
             current_noise_centi: crate::fixmath::isqrt_round(var.max(0) as u128) as i32,
+            supply_v: self.cfg.supply_v,
         });
         self.phase = Phase::Finished;
         self.progress = Progress::Done;
