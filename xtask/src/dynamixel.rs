@@ -7,9 +7,7 @@
 //! table, broadcast ping, SYNC WRITE, SYNC READ, the error numbers). The boards log to
 //! `target/dxl-log-BOARD.idN.log`; a failed check prints what each logged after boot.
 //!
-//! The SDK comes from PyPI into the virtual environment `target/venv` (made with
-//! `python3 -m venv`; when the `venv` module is missing and we are root with apt-get,
-//! `python3-venv` is installed the way `setup` installs QEMU: never removing a package).
+//! The SDK comes from PyPI into the virtual environment `target/venv` (`venv`).
 //!
 //! `DXL_LATENCY_MS` (default 2500) is the SDK's latency allowance: a status times out after
 //! twice that plus 2 ms. QEMU's emulated USART takes the host's bytes slowly on a loaded
@@ -23,7 +21,7 @@
 //! 15, so on a loaded host `DXL_READS=200` keeps the check to about a minute per board.
 
 use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::Instant;
 
@@ -31,6 +29,7 @@ use anyhow::{bail, ensure, Context, Result};
 
 use crate::board::Board;
 use crate::cmd::{cargo, run_status, target_dir, workspace_root};
+use crate::venv;
 
 /// The emulated load on each board, mN·m (positive pushes the link positive, so the
 /// actuator holds it by pushing CW: the AX direction bit is set).
@@ -49,56 +48,6 @@ const SHORT_READS: u32 = 100;
 const DEFAULT_READS: u32 = 1_000;
 /// The rate the SDK opens the bus at (see the module docs: the broadcast-ping window).
 const SDK_BAUD: u32 = 9_600;
-
-/// The venv's python, with `dynamixel_sdk` and `serial` importable: makes the venv and
-/// installs them when needed.
-pub fn ensure_sdk() -> Result<PathBuf> {
-    let venv = target_dir().join("venv");
-    let python = venv.join("bin").join("python");
-    if !python.exists() {
-        let made = Command::new("python3")
-            .args(["-m", "venv"])
-            .arg(&venv)
-            .status()
-            .context("running python3 (is Python 3 installed?)")?;
-        if !made.success() {
-            install_venv_package()?;
-            run_status(Command::new("python3").args(["-m", "venv"]).arg(&venv))
-                .context("python3 -m venv target/venv")?;
-        }
-    }
-    let has_sdk = Command::new(&python)
-        .args(["-c", "import dynamixel_sdk, serial"])
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if !has_sdk {
-        eprintln!("xtask: installing dynamixel-sdk and pyserial into target/venv");
-        run_status(Command::new(venv.join("bin").join("pip")).args([
-            "install",
-            "--quiet",
-            "dynamixel-sdk",
-            "pyserial",
-        ]))
-        .context("pip install dynamixel-sdk pyserial")?;
-    }
-    Ok(python)
-}
-
-/// `python3-venv` with apt-get, as root, never removing a package (see `setup`).
-fn install_venv_package() -> Result<()> {
-    let install = "apt-get install -y --no-install-recommends --no-remove python3-venv";
-    let is_root = Command::new("id")
-        .arg("-u")
-        .output()
-        .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).trim() == "0");
-    if !is_root {
-        bail!("python3 -m venv failed; install the venv module with:\n    sudo {install}");
-    }
-    eprintln!("xtask: python3's venv module is missing; {install}");
-    run_status(Command::new("apt-get").arg("update")).context("apt-get update")?;
-    run_status(Command::new("sh").args(["-c", install])).context(install)
-}
 
 /// Clippy on the Nucleo's Dynamixel TTL build (`dynamixel-ttl`: USART2 single-wire half
 /// duplex at the bus's rate), which the boards' own builds do not compile.
@@ -167,7 +116,7 @@ fn relay(board: Board, out: &std::process::Output) -> (usize, usize) {
 /// Runs the checks on `board` with the firmware `elf` (the three-board bus, then the bus
 /// settings across power cycles); returns the summary.
 pub fn run(board: Board, elf: &Path) -> Result<String> {
-    let python = ensure_sdk()?;
+    let python = venv::python_with("dynamixel_sdk, serial", &["dynamixel-sdk", "pyserial"])?;
     run_status(cargo().args(["build", "--quiet", "-p", "vsa-cli", "--bin", "vsa"]))
         .context("building vsa")?;
     let vsa = target_dir().join("debug").join("vsa");

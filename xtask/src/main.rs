@@ -20,6 +20,7 @@ mod e2e;
 mod fail_safe;
 mod firmware;
 mod flash;
+mod flex_bound;
 mod persistence;
 mod power_up;
 mod qemu;
@@ -28,6 +29,7 @@ mod scenarios;
 mod sensors;
 mod setup;
 mod test;
+mod venv;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -123,6 +125,25 @@ enum Task {
     },
     /// Instruction counts per call (fixed point vs f32), footprint and stack of each board.
     Bench,
+    /// The shortest raw steps the elastic actuator's linear part allows (a linear program
+    /// per step, numpy and scipy in target/venv) for the loaded raw steps of the grid's
+    /// dumps (`VSA_GRID_DUMP=/tmp/g.nom cargo test --release -p host-tests --test grid --
+    /// --exact nominal_actuator_grid`).
+    FlexBound {
+        /// The grid's dump files, e.g. /tmp/g.nom.1.tsv.
+        #[arg(required_unless_present = "check")]
+        dumps: Vec<PathBuf>,
+        /// Take every N-th loaded raw step.
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+        every: u32,
+        /// Factors of the configured link inertia one voltage sequence must serve at once,
+        /// e.g. 0.5,1,2,3 (an open-loop plan for a link known only within that range).
+        #[arg(long, default_value = "1")]
+        links: String,
+        /// Only check the program against the rigid bound (`cargo xtask test` does).
+        #[arg(long)]
+        check: bool,
+    },
     /// Cargo runner for thumb targets: run an ELF on an emulated board.
     #[command(hide = true)]
     QemuRunner {
@@ -236,6 +257,16 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Task::Bench => bench::run().map(|()| ExitCode::SUCCESS),
+        Task::FlexBound {
+            dumps,
+            every,
+            links,
+            check: false,
+        } => flex_bound::run(&dumps, every, &links),
+        Task::FlexBound { check: true, .. } => flex_bound::check().map(|line| {
+            println!("{line}");
+            ExitCode::SUCCESS
+        }),
         Task::QemuRunner { board, elf, args } => {
             setup::ensure_qemu()?;
             Ok(emulate(board, &elf, &args, test::wall_limit(3600))?.0)

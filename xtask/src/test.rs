@@ -93,6 +93,10 @@ pub fn run() -> Result<bool> {
     }
 
     host_tests(&mut tally);
+    tally.record(
+        "flex-bound program against the rigid bound",
+        crate::flex_bound::check().map(|line| println!("[flex-bound] {line}")),
+    );
 
     let mut elfs = Vec::new();
     for board in Board::ALL {
