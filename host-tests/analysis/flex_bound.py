@@ -13,7 +13,8 @@ bisection.
 
 Input: the grid's dump files (`VSA_GRID_DUMP=PREFIX cargo test --release -p host-tests
 --test grid` writes PREFIX.SEED.tsv for each grid it runs); their loaded raw steps are
-read from the `vsa simulate` column, the actuator taken as nominal. Output: one line per step and a summary.
+read from the `vsa simulate` column, each on the actuator its `--plant` overrides make (an
+off-nominal grid's), known exactly; T_opt is that actuator's rigid bound, as in the grid. Output: one line per step and a summary.
 `--links 0.5,1,2,3` asks for one sequence that serves links of those multiples of the
 configured inertia at once (an open-loop plan for a link known within that range). Run it
 with `cargo xtask flex-bound FILE...` (which installs numpy and scipy into target/venv);
@@ -21,6 +22,7 @@ with `cargo xtask flex-bound FILE...` (which installs numpy and scipy into targe
 """
 
 import argparse
+import collections
 import math
 import multiprocessing
 import re
@@ -31,12 +33,13 @@ import scipy.linalg
 import scipy.sparse
 from scipy.optimize import linprog
 
-# The actuator of docs/design.md §3 and the limits of the rigid bound (§10).
-SUPPLY_V = 12.0
-RESISTANCE = 8.0
-TORQUE_CONSTANT = 1.0
-BACK_EMF = 1.94
-GEAR_INERTIA = 3.2e-3
+# The motor of docs/design.md §3 (supply V, resistance Ω, k_t N·m/A, k_e V·s/rad, J_g kg·m²)
+# and the limits of the rigid bound (§10).
+Motor = collections.namedtuple("Motor", "supply resistance kt ke jg")
+NOMINAL = Motor(supply=12.0, resistance=8.0, kt=1.0, ke=1.94, jg=3.2e-3)
+# The grid's `--plant` overrides that enter the linear model: name → Motor field, or "link".
+OVERRIDES = {"supply": "supply", "resistance": "resistance", "torque-constant": "kt",
+             "back-emf": "ke", "gear-inertia": "jg", "link-inertia": "link"}
 GEAR_VISCOUS = 1e-3
 LINK_VISCOUS = 2e-4
 CURRENT_LIMIT_A = 1.5
@@ -69,32 +72,32 @@ def torque_capacity(l_m):
     return BEAMS * PITCH_RADIUS * SIGMA_ALLOW * math.pi * BEAM_RADIUS**3 / (4 * l_m)
 
 
-def rigid_time_optimal(h, j_l, l_m):
+def rigid_time_optimal(h, j_l, l_m, motor=NOMINAL):
     """The rigid bound of §10: full voltage within the current limit, then braking at the
     current limit, the link's acceleration within the beams' torque limit."""
-    j = GEAR_INERTIA + j_l
+    j = motor.jg + j_l
     a_link = TORQUE_MARGIN * torque_capacity(l_m) / j_l
-    a_brake = min(TORQUE_CONSTANT * CURRENT_LIMIT_A / j, a_link)
+    a_brake = min(motor.kt * CURRENT_LIMIT_A / j, a_link)
     theta = w = t = 0.0
     dt = 1e-6
     while h - theta > w * w / (2 * a_brake):
-        i = min((SUPPLY_V - BACK_EMF * w) / RESISTANCE, CURRENT_LIMIT_A)
-        w += min(TORQUE_CONSTANT * i / j, a_link) * dt
+        i = min((motor.supply - motor.ke * w) / motor.resistance, CURRENT_LIMIT_A)
+        w += min(motor.kt * i / j, a_link) * dt
         theta += w * dt
         t += dt
     return t + w / a_brake
 
 
-def discrete(k, j_l):
+def discrete(k, j_l, motor):
     """x = (θ_g, ω_g, θ_l, ω_l), inputs (V, τ_load): the zero-order-hold model over one tick."""
-    damping = TORQUE_CONSTANT * BACK_EMF / RESISTANCE + GEAR_VISCOUS
+    damping = motor.kt * motor.ke / motor.resistance + GEAR_VISCOUS
     a = np.array([
         [0, 1, 0, 0],
-        [-k / GEAR_INERTIA, -damping / GEAR_INERTIA, k / GEAR_INERTIA, 0],
+        [-k / motor.jg, -damping / motor.jg, k / motor.jg, 0],
         [0, 0, 0, 1],
         [k / j_l, 0, -k / j_l, -LINK_VISCOUS / j_l],
     ])
-    b = np.array([[0, 0], [TORQUE_CONSTANT / (RESISTANCE * GEAR_INERTIA), 0], [0, 0], [0, 1 / j_l]])
+    b = np.array([[0, 0], [motor.kt / (motor.resistance * motor.jg), 0], [0, 0], [0, 1 / j_l]])
     m = np.zeros((6, 6))
     m[:4, :4] = a * DT
     m[:4, 4:] = b * DT
@@ -120,7 +123,7 @@ class Rows:
                                        shape=(len(self.rhs), width))
 
 
-def reachable(ticks, h, l_m, links, load, stiffer=1.0):
+def reachable(ticks, h, l_m, links, load, motor=NOMINAL, stiffer=1.0):
     """Whether one voltage sequence puts the link within a count of h from `ticks` on, at
     rest `HOLD_TICKS` later, from rest under `load` at 0, for each link inertia of `links`
     at once (beams `stiffer` times k(L)); None if the solver decides neither way."""
@@ -130,11 +133,11 @@ def reachable(ticks, h, l_m, links, load, stiffer=1.0):
     nx = 4 * (n + 1)
     width = n + nx * len(links)
     equation, inequality = Rows(), Rows()
-    bounds = [(-SUPPLY_V, SUPPLY_V)] * n + [(None, None)] * (nx * len(links))
+    bounds = [(-motor.supply, motor.supply)] * n + [(None, None)] * (nx * len(links))
 
     torque_limit = TORQUE_MARGIN * torque_capacity(l_m)
     for p, j_l in enumerate(links):
-        a, b = discrete(k, j_l)
+        a, b = discrete(k, j_l, motor)
         x = lambda t, j: n + p * nx + 4 * t + j  # noqa: E731
         start = (-load / k, 0.0, 0.0, 0.0)  # the beams hold the load
         for j in range(4):
@@ -146,8 +149,8 @@ def reachable(ticks, h, l_m, links, load, stiffer=1.0):
                 equation.add(terms, b[j, 1] * load)
             # |i| ≤ i_max with i = (V − k_e·ω_g)/R, |k·(θ_g − θ_l)| ≤ 0.85·τ_cap.
             for s in (1.0, -1.0):
-                inequality.add([(u(t), s / RESISTANCE), (x(t, 1), -s * BACK_EMF / RESISTANCE)],
-                           CURRENT_LIMIT_A)
+                inequality.add([(u(t), s / motor.resistance),
+                                (x(t, 1), -s * motor.ke / motor.resistance)], CURRENT_LIMIT_A)
                 inequality.add([(x(t + 1, 0), s * k), (x(t + 1, 2), -s * k)], torque_limit)
         equation.add([(x(n, 1), 1.0)], 0.0)
         equation.add([(x(n, 3), 1.0)], 0.0)
@@ -162,26 +165,48 @@ def reachable(ticks, h, l_m, links, load, stiffer=1.0):
     return None
 
 
-def shortest_ticks(h, l_m, links, load, upper, stiffer=1.0):
+def shortest_ticks(h, l_m, links, load, upper, motor=NOMINAL, stiffer=1.0):
     """The least T in ticks that a solved program reaches (bisection below `upper`, or
     below the first of 2·upper, 4·upper, … up to 2 000 ticks reached); None if none is."""
     lo, hi = 2, upper
-    while not reachable(hi, h, l_m, links, load, stiffer):
+    while not reachable(hi, h, l_m, links, load, motor, stiffer):
         if hi >= MAX_TICKS:
             return None
         lo, hi = hi, min(2 * hi, MAX_TICKS)
     while hi - lo > 1:
         mid = (lo + hi) // 2
-        if reachable(mid, h, l_m, links, load, stiffer):
+        if reachable(mid, h, l_m, links, load, motor, stiffer):
             hi = mid
         else:
             lo = mid
     return hi
 
 
+Step = collections.namedtuple("Step", "l_m j_l load h motor controller")
+
+
+def actuator(args):
+    """The motor and the link inertia of a `vsa simulate` line, its `--plant` overrides
+    applied (a factor `xF` of the nominal value or an absolute value with its unit)."""
+    j_l = float(re.search(r"--inertia (\S+)", args)[1])
+    fields = NOMINAL._asdict()
+    for name, value in re.findall(r"--plant ([a-z-]+)=(\S+)", args):
+        field = OVERRIDES.get(name)
+        if field is None:
+            continue  # sensor and friction overrides: not in the linear model
+        nominal = j_l if field == "link" else fields[field]
+        number = float(value[1:]) * nominal if value.startswith("x") else \
+            float(re.match(r"[-+0-9.eE]+", value)[0])
+        if field == "link":
+            j_l = number
+        else:
+            fields[field] = number
+    return Motor(**fields), j_l
+
+
 def raw_steps(paths, every):
-    """(L m, J_l, load N·m, step rad, the controller's settling / T_opt) of the loaded raw
-    steps in the dumps, every `every`-th."""
+    """The loaded raw steps in the dumps, every `every`-th, with the actuator each ran on
+    and the controller's settling / T_opt."""
     steps = []
     for path in paths:
         with open(path, encoding="utf-8") as f:
@@ -196,20 +221,21 @@ def raw_steps(paths, every):
                 if step is None or load == 0.0:
                     continue
                 l_m = float(re.search(r"--clutch-length (\S+)mm", args)[1]) * 1e-3
-                j_l = float(re.search(r"--inertia (\S+)", args)[1])
-                steps.append((l_m, j_l, load, float(step[1]), float(cols[ratio_col])))
+                motor, j_l = actuator(args)
+                steps.append(Step(l_m, j_l, load, float(step[1]), motor,
+                                  float(cols[ratio_col])))
     return steps[::every]
 
 
 def bound_of(job):
-    """(the step, its rigid bound T_opt with the configured link, the least ticks of one
-    sequence for the links `factors` times the configured one)."""
+    """(the step, its rigid bound T_opt, the least ticks of one sequence for the links
+    `factors` times the step's own)."""
     step, factors = job
-    l_m, j_l, load, h, _ = step
-    sign = 1.0 if h > 0 else -1.0  # a positive step, the load mirrored with it
-    t_opt = rigid_time_optimal(abs(h), j_l, l_m)
-    links = tuple(f * j_l for f in factors)
-    ticks = shortest_ticks(abs(h), l_m, links, sign * load, math.floor(1.5 * t_opt / DT))
+    sign = 1.0 if step.h > 0 else -1.0  # a positive step, the load mirrored with it
+    t_opt = rigid_time_optimal(abs(step.h), step.j_l, step.l_m, step.motor)
+    links = tuple(f * step.j_l for f in factors)
+    ticks = shortest_ticks(abs(step.h), step.l_m, links, sign * step.load,
+                           math.floor(1.5 * t_opt / DT), step.motor)
     return step, t_opt, ticks
 
 
@@ -262,13 +288,14 @@ def main():
     ratios, within, controller_within = [], 0, 0
     with multiprocessing.Pool(args.jobs) as pool:
         jobs = [(step, factors) for step in steps]
-        for (l_m, j_l, load, h, controller), t_opt, ticks in pool.imap(bound_of, jobs):
+        for step, t_opt, ticks in pool.imap(bound_of, jobs):
             ratio = float("inf") if ticks is None else ticks * DT / t_opt
             ratios.append(ratio)
             within += ratio <= 1.5
-            controller_within += controller <= 1.5
-            print(f"{l_m * 1e3:.3f}\t{j_l:.3e}\t{load:+.3f}\t{h:+.3f}\t{t_opt * 1e3:.1f}"
-                  f"\t{ticks}\t{ratio:.2f}\t{controller:.2f}", flush=True)
+            controller_within += step.controller <= 1.5
+            print(f"{step.l_m * 1e3:.3f}\t{step.j_l:.3e}\t{step.load:+.3f}\t{step.h:+.3f}"
+                  f"\t{t_opt * 1e3:.1f}\t{ticks}\t{ratio:.2f}\t{step.controller:.2f}",
+                  flush=True)
     ratios.sort()
     print(f"{len(ratios)} loaded raw steps, links ×{args.links}: the elastic bound within 1.5·T_opt in {within}"
           f" (bound / T_opt min {ratios[0]:.2f}, median {ratios[len(ratios) // 2]:.2f},"
