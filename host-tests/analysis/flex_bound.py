@@ -52,6 +52,9 @@ BEAMS = 4
 SIGMA_ALLOW = 1.5e9
 COUNT_RAD = 2 * math.pi / 4096
 DT = 1e-3
+# The acceptance bound on a raw step's settling, times T_opt (the grid's
+# `RAW_STEP_BOUND_FACTOR`, host-tests/src/grid.rs).
+BOUND_FACTOR = 1.5
 # Ticks the link must stay within a count after T before it is at rest.
 HOLD_TICKS = 150
 # HiGHS' interior-point method, then its dual simplex: near the least time either stalls
@@ -235,7 +238,7 @@ def bound_of(job):
     t_opt = rigid_time_optimal(abs(step.h), step.j_l, step.l_m, step.motor)
     links = tuple(f * step.j_l for f in factors)
     ticks = shortest_ticks(abs(step.h), step.l_m, links, sign * step.load,
-                           math.floor(1.5 * t_opt / DT), step.motor)
+                           math.floor(BOUND_FACTOR * t_opt / DT), step.motor)
     return step, t_opt, ticks
 
 
@@ -253,14 +256,14 @@ def check():
 
 
 def factors_arg(text):
-    """`--links`: positive factors, comma-separated."""
+    """`--links`: positive factors, comma-separated, as a tuple."""
     try:
         factors = [float(f) for f in text.split(",")]
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a list of numbers: {text!r}") from None
     if not all(0 < f < 100 for f in factors):
         raise argparse.ArgumentTypeError(f"factors must be in (0, 100): {text!r}")
-    return text
+    return tuple(factors)
 
 
 def main():
@@ -270,7 +273,7 @@ def main():
                         help="only check the program against the rigid bound")
     parser.add_argument("--every", type=int, default=1, help="take every N-th loaded raw step")
     parser.add_argument("--jobs", type=int, default=multiprocessing.cpu_count())
-    parser.add_argument("--links", default="1", type=factors_arg,
+    parser.add_argument("--links", default=(1.0,), type=factors_arg,
                         help="factors of the configured link inertia one voltage sequence must"
                         " serve at once, e.g. 0.5,1,2,3 (default 1: the configured link)")
     args = parser.parse_args()
@@ -280,26 +283,27 @@ def main():
     if not args.dumps:
         parser.error("the grid's dump files are needed (or --check)")
     steps = raw_steps(args.dumps, args.every)
-    factors = tuple(float(f) for f in args.links.split(","))
     if not steps:
         sys.exit("flex_bound: no loaded raw step in the dumps")
     print("L mm\tJ_l kg·m²\tload N·m\tstep rad\tT_opt ms\telastic bound ms\tbound / T_opt"
           "\tcontroller / T_opt")
     ratios, within, controller_within = [], 0, 0
     with multiprocessing.Pool(args.jobs) as pool:
-        jobs = [(step, factors) for step in steps]
+        jobs = [(step, args.links) for step in steps]
         for step, t_opt, ticks in pool.imap(bound_of, jobs):
             ratio = float("inf") if ticks is None else ticks * DT / t_opt
             ratios.append(ratio)
-            within += ratio <= 1.5
-            controller_within += step.controller <= 1.5
+            within += ratio <= BOUND_FACTOR
+            controller_within += step.controller <= BOUND_FACTOR
             print(f"{step.l_m * 1e3:.3f}\t{step.j_l:.3e}\t{step.load:+.3f}\t{step.h:+.3f}"
                   f"\t{t_opt * 1e3:.1f}\t{ticks}\t{ratio:.2f}\t{step.controller:.2f}",
                   flush=True)
     ratios.sort()
-    print(f"{len(ratios)} loaded raw steps, links ×{args.links}: the elastic bound within 1.5·T_opt in {within}"
-          f" (bound / T_opt min {ratios[0]:.2f}, median {ratios[len(ratios) // 2]:.2f},"
-          f" max {ratios[-1]:.2f}); the controller within 1.5·T_opt in {controller_within}")
+    links = ",".join(f"{f:g}" for f in args.links)
+    print(f"{len(ratios)} loaded raw steps, links ×{links}: the elastic bound within"
+          f" {BOUND_FACTOR:g}·T_opt in {within} (bound / T_opt min {ratios[0]:.2f}, median {ratios[len(ratios) // 2]:.2f},"
+          f" max {ratios[-1]:.2f}); the controller within {BOUND_FACTOR:g}·T_opt in"
+          f" {controller_within}")
 
 
 if __name__ == "__main__":
