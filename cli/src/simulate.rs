@@ -7,7 +7,7 @@
 //!              (--step 0.5rad | --move 0.5rad:200ms | --sine 0.2rad:1Hz
 //!               | --impedance 0.3rad:20Nm/rad:0.2Nms/rad[:0.1Nm])
 //!              [--seconds 2] [--csv FILE] [--json] [--no-pot] [--settle 0.5]
-//!              [--plant NAME=VALUE]...
+//!              [--boot-under-load] [--plant NAME=VALUE]...
 //! ```
 //!
 //! `--impedance` holds the target with a virtual stiffness, damping and feed-forward torque
@@ -19,7 +19,8 @@
 //! configuration.
 //!
 //! The run holds for `--settle` seconds with the load applied (the coupling starts
-//! deflected by it), gives the command, and runs `--seconds` more. Metrics are computed
+//! deflected by it, the board's boot window passed with the actuator held, unless
+//! `--boot-under-load`), gives the command, and runs `--seconds` more. Metrics are computed
 //! from the plant's true state. Quantities accept a unit suffix (see [`parse`]); the
 //! parsing here is deliberately minimal until it moves to the shared `units` module.
 
@@ -99,6 +100,11 @@ pub struct SimulateArgs {
     /// Run without the gear potentiometer (torque estimate from the current only).
     #[arg(long)]
     pub no_pot: bool,
+    /// Power the board up with the load already hanging: the link falls while the boot
+    /// window (32 ms, bridge off) measures the current offset and aligns the encoder; by
+    /// default the window passes with the actuator held and the hold starts powered
+    #[arg(long)]
+    pub boot_under_load: bool,
     /// Change the simulated actuator (not the controller's model): `NAME=VALUE`, VALUE
     /// absolute with its unit or a factor `xF` of the nominal value; repeatable. Names:
     /// resistance (ohm), torque-constant (Nm/A), back-emf (Vs/rad), gear-inertia (kgm2),
@@ -466,6 +472,7 @@ pub fn run(args: &SimulateArgs) -> Result<(), String> {
     // At least one tick after the command: a run without one has no response to report.
     sc.run_ticks = ticks(&args.seconds, "--seconds", 1)?;
     sc.use_pot = !args.no_pot;
+    sc.boot_held = !args.boot_under_load;
     sc.supervision.clutch_monitor = !args.no_clutch_monitor;
     sc.steady_window_ticks = 500.min(sc.run_ticks);
     // For a sine, the RMS error skips the first period (start transient).

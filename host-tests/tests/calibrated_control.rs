@@ -114,6 +114,7 @@ fn run_builds(warm: f32) {
                 plant: overrides_of(&powered_up),
                 clutch_tolerance_um: tolerance_um,
                 in_force: Some(in_force),
+                boot_under_load: false,
             };
             let o = grid::run(b as usize * CASES_PER_BUILD + k, &case);
             outcomes.push(o);

@@ -199,7 +199,7 @@ fn a_loaded_move_on_a_sagging_supply_settles_in_time() {
     assert!(o.metrics.overshoot_pct <= 5.0, "{case}: overshoot");
 }
 
-/// On a low supply (10.5 and 11.2 V) a loaded move and a loaded raw step at soft settings
+/// On a low supply (10.5 and 10.7 V) a loaded move and a loaded raw step at soft settings
 /// settle in time once the controller takes the supply the board measures before the
 /// command, and late without the sense (the configured 12 V in force): the check that the
 /// measurement is what makes the difference (design §11, "The supply the board measures").

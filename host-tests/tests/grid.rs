@@ -15,7 +15,9 @@
 //! `link-friction=0.002Nm` for an output bearing with dry friction);
 //! `VSA_GRID_CLUTCH_TOLERANCE_UM=1000` runs every case with the clutch tolerance a board
 //! takes until a calibration confirms the clutch (the weak capacity and the clutch
-//! monitor, docs/calibration.md). The long run is `VSA_GRID_RUNS=5000 cargo test --release -p host-tests --test
+//! monitor, docs/calibration.md). `nominal_actuator_grid_booted_under_its_load` runs the
+//! nominal cases on a board powered up with the load hanging (its dump file
+//! `PREFIX.boot-under-load.SEED.tsv`). The long run is `VSA_GRID_RUNS=5000 cargo test --release -p host-tests --test
 //! grid -- --nocapture`. Limits not yet met are listed in [`OPEN`]: they are measured and
 //! printed but only enforced with `VSA_GRID_STRICT=1`.
 
@@ -42,14 +44,14 @@ const OPEN: &[&str] = &[
 /// Open on the off-nominal grid only: peak stress by free-play impacts of links heavier
 /// than configured, faults and stress after a trip by runs whose impacts overload the
 /// beams. With the nominal actuator they hold on the long run (5 000 cases: no fault, worst
-/// peak stress 0.978 σ_allow) and are enforced.
+/// peak stress 0.907 σ_allow; booted under its load 0.978) and are enforced.
 const OPEN_OFF_NOMINAL: &[&str] = &[
     "peak stress / σ_allow",
     "faults latched",
     "stress after a trip / σ_allow",
 ];
 
-fn sweep(label: &str, off_nominal: bool, seed_offset: u64) {
+fn sweep(label: &str, off_nominal: bool, seed_offset: u64, boot_under_load: bool) {
     let n = env_or("VSA_GRID_RUNS", 250) as usize;
     let seed = env_or("VSA_GRID_SEED", 1) + seed_offset;
     let strict = std::env::var("VSA_GRID_STRICT").is_ok_and(|v| v == "1");
@@ -74,6 +76,7 @@ fn sweep(label: &str, off_nominal: bool, seed_offset: u64) {
                 c.plant.set(*o);
             }
             c.clutch_tolerance_um = tolerance_um;
+            c.boot_under_load = boot_under_load;
             grid::run(i, &c)
         })
         .collect();
@@ -87,7 +90,12 @@ fn sweep(label: &str, off_nominal: bool, seed_offset: u64) {
         .ok()
         .filter(|p| !p.is_empty())
     {
-        dump(&format!("{path}.{seed}.tsv"), &names, &outcomes);
+        let boot = if boot_under_load {
+            ".boot-under-load"
+        } else {
+            ""
+        };
+        dump(&format!("{path}{boot}.{seed}.tsv"), &names, &outcomes);
     }
     let open_here =
         |name: &str| OPEN.contains(&name) || (off_nominal && OPEN_OFF_NOMINAL.contains(&name));
@@ -164,12 +172,21 @@ fn dump(path: &str, names: &[&str], outcomes: &[Outcome]) {
 
 #[test]
 fn nominal_actuator_grid() {
-    sweep("nominal actuator", false, 0);
+    sweep("nominal actuator", false, 0, false);
 }
 
 #[test]
 fn off_nominal_actuator_grid() {
-    sweep("off-nominal actuator", true, 1_000_000);
+    sweep("off-nominal actuator", true, 1_000_000, false);
+}
+
+/// The nominal grid's cases on a board powered up with the load already hanging: the link
+/// falls while the boot window keeps the bridge off, and the servo catches it before the
+/// hold (docs/design.md §11, "The boot window before the hold"). The nominal grid's enforced
+/// limits hold.
+#[test]
+fn nominal_actuator_grid_booted_under_its_load() {
+    sweep("nominal actuator, booted under its load", false, 0, true);
 }
 
 #[test]

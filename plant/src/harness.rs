@@ -10,8 +10,9 @@
 //! quantisation the controller does not model) unless the scenario makes the actuator
 //! off-nominal ([`Scenario::plant`], [`crate::overrides`]).
 //!
-//! A run: hold for `settle_ticks` (so that a constant load is taken up by the coupling and
-//! the integrator), give the command, run `run_ticks` more. Metrics use the plant's *true*
+//! A run: the board's boot window with the actuator held ([`Scenario::boot_held`]), hold
+//! for `settle_ticks` (so that a constant load is taken up by the coupling and the
+//! integrator), give the command, run `run_ticks` more. Metrics use the plant's *true*
 //! link angle and beam stress.
 
 use model::calibration::correction::SensorCorrection;
@@ -29,7 +30,7 @@ use crate::config::{
 };
 use crate::metrics::{Span, StepResponse};
 use crate::overrides::Overrides;
-use crate::sensors::ENCODER_COUNT_RAD;
+use crate::sensors::{SensorReadings, ENCODER_COUNT_RAD};
 use crate::sim::{BridgeCommand, Plant};
 
 const Q32: f64 = 4_294_967_296.0;
@@ -74,9 +75,15 @@ pub struct Scenario {
     /// Plant integration substeps per tick (0: the plant's default).
     pub substeps: u16,
     /// Start with the coupling already deflected by the constant load (the link hangs on
-    /// the beams at rest, as after power-up under load) instead of in the middle of the
-    /// free play, where applying the load at t = 0 would slam the link into the beams.
+    /// the beams at rest, the gear holding it) instead of in the middle of the free play,
+    /// where applying the load at t = 0 would slam the link into the beams.
     pub preload: bool,
+    /// The board's boot window (bridge off: the current offset and the encoder's
+    /// alignment, docs/calibration.md) passes before the hold with the actuator held still,
+    /// as when the load is hung on once the servo holds (the default). `false`: the board
+    /// powers up with the load already hanging, and the coasting gear lets the link fall
+    /// during the window.
+    pub boot_held: bool,
     /// Changes of the simulated actuator from the nominal one the controller is
     /// configured with (docs/design.md §9); the controller does not see them.
     pub plant: Overrides,
@@ -120,6 +127,7 @@ impl Scenario {
             rms_from_ticks: 0,
             substeps: 0,
             preload: true,
+            boot_held: true,
             plant: Overrides::NONE,
             supervision: SupervisorConfig::DEFAULT,
             impedance: None,
@@ -548,6 +556,17 @@ pub fn frame_shift(measured: f64, true_angle: f64) -> f64 {
     (count(true_angle) - count(measured)) * ENCODER_COUNT_RAD
 }
 
+/// The servo's raw readings from the simulated sensors, as `sc` wires them.
+fn tick_input(sc: &Scenario, readings: &SensorReadings) -> TickInput {
+    TickInput {
+        link_encoder: readings.link_encoder,
+        gear_pot: sc.use_pot.then_some(readings.gear_pot),
+        current_adc: readings.current_adc,
+        supply_adc: sc.use_supply_sense.then_some(readings.supply_adc),
+        read_error: None,
+    }
+}
+
 /// Runs `sc` — the servo (controller under the supervisor, enabled from the first tick)
 /// against the simulated actuator — calling `on_sample` once per tick, and returns the
 /// metrics. After a fault the bridge is off ([`OFF_BRIDGE`]) and the run goes on.
@@ -577,6 +596,13 @@ where
     let mut pipeline = Pipeline::new(&sc.correction).map_err(ServoError::Correction)?;
     servo.enable()?;
     let mut readings = plant.readings();
+    // A coasting gear could not hold the load the coupling starts deflected by: the boot
+    // window passes first, the actuator held still (as the emulated board hangs its load
+    // on once the bridge drives, `served`), unless the board boots under the load.
+    while sc.boot_held && !pipeline.aligned() {
+        let _ = pipeline.tick(&mut servo, &tick_input(sc, &readings));
+        readings = plant.resample();
+    }
     let mut rec = Recorder::new(
         sc.settle_ticks,
         sc.run_ticks,
@@ -628,13 +654,7 @@ where
                 Err(e) => return Err(e),
             }
         }
-        let input = TickInput {
-            link_encoder: readings.link_encoder,
-            gear_pot: sc.use_pot.then_some(readings.gear_pot),
-            current_adc: readings.current_adc,
-            supply_adc: sc.use_supply_sense.then_some(readings.supply_adc),
-            read_error: None,
-        };
+        let input = tick_input(sc, &readings);
         let out = pipeline.tick(&mut servo, &input);
         if tick == sc.settle_ticks {
             let target = servo

@@ -449,6 +449,13 @@ impl Plant {
         self.readings
     }
 
+    /// Samples the sensors again at the present state (fresh noise) without advancing the
+    /// dynamics: the readings of an actuator held still while its board boots.
+    pub fn resample(&mut self) -> SensorReadings {
+        self.sample_sensors();
+        self.readings
+    }
+
     fn sample_sensors(&mut self) {
         let s = &self.cfg.sensors;
         let noise = s.current_noise_counts * self.rng.next_gaussian();
