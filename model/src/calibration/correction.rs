@@ -23,6 +23,13 @@ use crate::servo::TickInput;
 
 /// Ticks of pot averaging at power-up before the encoder offset is set (32 ms).
 pub const BOOT_TICKS: u16 = 32;
+/// A link that turns this many encoder counts during the window (falling under a load
+/// with the bridge off) ends it early, after at least [`BOOT_MIN_TICKS`]: the servo then
+/// catches it sooner (docs/calibration.md, "The link's absolute angle at start-up").
+pub const BOOT_MOVED_COUNTS: i32 = 2;
+/// The fewest ticks a boot window averages (the current offset's noise ×2 of the full
+/// window's).
+pub const BOOT_MIN_TICKS: u16 = 8;
 
 /// One in Q16.
 const Q16: i64 = 1 << 16;
@@ -175,6 +182,8 @@ pub struct Corrector {
     boot_left: u16,
     boot_sum_q16: i64,
     boot_adc_sum: u32,
+    /// The canonical encoder (Q16) at the window's first tick.
+    boot_start_q16: i32,
 }
 
 /// Signed change of an encoder reading from `prev` to `now` at `per_turn` (≥ 1) counts
@@ -253,6 +262,7 @@ impl Corrector {
             boot_left: BOOT_TICKS,
             boot_sum_q16: 0,
             boot_adc_sum: 0,
+            boot_start_q16: 0,
         })
     }
 
@@ -380,7 +390,11 @@ impl Corrector {
             self.enc_prev = now;
         }
         self.unwrap_encoder(now);
+        if self.boot_left == BOOT_TICKS {
+            self.boot_start_q16 = self.enc_q16;
+        }
         self.boot_left -= 1;
+        let done = BOOT_TICKS - self.boot_left;
         // The offset that makes the link angle the gear angle from this tick's pot,
         // canonical encoder counts, Q16: averaged per tick, so that a link that moves
         // during the window (falling under a load with the motor off) is aligned as well.
@@ -395,15 +409,23 @@ impl Corrector {
         };
         self.boot_sum_q16 = self.boot_sum_q16.saturating_add(offset_q16);
         self.boot_adc_sum = self.boot_adc_sum.saturating_add(u32::from(raw.current_adc));
+        let moved = self
+            .enc_q16
+            .wrapping_sub(self.boot_start_q16)
+            .unsigned_abs()
+            >= BOOT_MOVED_COUNTS.unsigned_abs() << 16;
+        if moved && done >= BOOT_MIN_TICKS {
+            self.boot_left = 0;
+        }
         if self.boot_left == 0 {
             // Mean offset, rounded to whole counts (the reading is the centre of its
             // count), added to the canonical encoder.
-            let mean_q16 = self.boot_sum_q16 / i64::from(BOOT_TICKS);
+            let mean_q16 = self.boot_sum_q16 / i64::from(done);
             let offset = ((mean_q16 + Q16 / 2) >> 16) as i32;
             self.enc_q16 = self.enc_q16.wrapping_add(offset.wrapping_shl(16));
             // Mean raw current with the bridge off: 0 A, unless it sits at a rail (a dead
             // or unidirectional sense, which the supervisor then reports).
-            let n = u32::from(BOOT_TICKS);
+            let n = u32::from(done);
             let mean = self.boot_adc_sum / n;
             let rails = u32::from(self.cal.adc_min)..=u32::from(self.cal.adc_max);
             let offset_q16 = if rails.contains(&mean) {
@@ -486,6 +508,30 @@ mod tests {
             c.input(&raw(1234, 452, 2048)).unwrap().link_encoder,
             4096 - 200
         );
+    }
+
+    #[test]
+    fn a_link_that_falls_ends_the_boot_window_early() {
+        // Gear held at +200 encoder counts by the pot; the link still for 4 ticks, then
+        // falling a count a tick: moved 2 counts by the 6th tick, so the window ends at its
+        // 8th (`BOOT_MIN_TICKS`), the offsets averaged over those 8: 200 − (1+2+3+4)/8 =
+        // 198.75, rounded to 199; the current's mean over the same 8 ticks.
+        let mut c = Corrector::new(&SensorCorrection::NOMINAL).unwrap();
+        let enc = [0u16, 0, 0, 0, 1, 2, 3, 4];
+        for (k, e) in enc.iter().enumerate() {
+            assert!(!c.aligned(), "aligned before tick {k}");
+            let adc = if k < 4 { 2050 } else { 2054 };
+            assert_eq!(c.input(&raw(*e, 572, adc)), None);
+        }
+        assert!(c.aligned());
+        assert_eq!(c.input(&raw(5, 572, 2052)).unwrap().link_encoder, 5 + 199);
+        assert_eq!(c.current_offset_q16(), 2052 << 16);
+        // A link that stays within a count takes the whole window.
+        let mut c = Corrector::new(&SensorCorrection::NOMINAL).unwrap();
+        for k in 0..BOOT_TICKS {
+            assert_eq!(c.input(&raw(k % 2, 572, 2048)), None, "tick {k}");
+        }
+        assert!(c.aligned());
     }
 
     #[test]
