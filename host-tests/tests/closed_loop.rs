@@ -4,7 +4,8 @@
 //! the measured figures are printed (`cargo test --test closed_loop -- --nocapture`).
 //!
 //! Each run holds for 0.5 s (the coupling starts deflected by the constant load, see
-//! `Scenario::preload`), then gives the command and runs 2 s; metrics use the plant's true
+//! `Scenario::preload`, the board's boot window passed with the actuator held,
+//! `Scenario::boot_held`), then gives the command and runs 2 s; metrics use the plant's true
 //! link angle and beam stress. "±1 count" is 2π/4096 rad of true link angle around the
 //! target; "steady" means the duty and the encoder count each vary by at most 1 over the
 //! last 500 ms.
@@ -510,4 +511,42 @@ fn same_run_twice_is_bit_identical() {
     let a = sim::run(&sim::scenario(1, sim::raw_step(STEP_RAD), LOAD_NM));
     let b = sim::run(&sim::scenario(2, sim::raw_step(STEP_RAD), LOAD_NM));
     assert_ne!(a.output_hash, b.output_hash, "the hash sees the outputs");
+}
+
+/// The board's boot window (bridge off) passes before the hold with the actuator held: the
+/// loaded link has not moved when the servo first drives. Booted under its load, the
+/// coasting gear lets the link fall until the window ends, which a link that has turned 2
+/// encoder counts ends early, after at least 8 ticks (design §11, "The boot window before
+/// the hold"; docs/calibration.md, "The link's absolute angle at start-up").
+#[test]
+fn the_boot_window_holds_the_loaded_link_unless_the_board_boots_under_its_load() {
+    // 0.29 N·m on a 1.08e-3 kg·m² link at 7.3 mm: the nominal load back-drives the gear at
+    // about τ/(J_g + J_l) = 67 rad/s², two counts (3.1 mrad) in some 10 ms.
+    let case = grid::Case::written(7286, 1.084e-3, -0.289, grid::Motion::Step(0.067), "");
+    for under_load in [false, true] {
+        let mut sc = case.scenario();
+        sc.boot_held = !under_load;
+        // Ticks counted from power-up: the held window's 32 come before the run's tick 0.
+        let boot = if under_load { 0 } else { 32 };
+        let mut first = None;
+        plant::harness::run(&sc, |s| {
+            if first.is_none() && s.duty != 0 {
+                first = Some((s.tick + boot, s.link_angle_rad));
+            }
+        })
+        .expect("run");
+        let (tick, fallen) = first.expect("the servo drives");
+        let counts = fallen.abs() / (2.0 * std::f64::consts::PI / 4096.0);
+        println!("booted under its load {under_load}: first drive at tick {tick} after power-up, the link {counts:.2} counts from where it started");
+        if under_load {
+            assert!(
+                (8..32).contains(&tick),
+                "the window ends early: tick {tick}"
+            );
+            assert!(counts >= 1.0, "the link fell {counts:.2} counts");
+        } else {
+            assert!(tick <= 40, "the hold drives at once: tick {tick}");
+            assert!(counts < 0.5, "the held link moved {counts:.2} counts");
+        }
+    }
 }
