@@ -12,8 +12,10 @@
 
 use host_tests::sim::{self, LOAD_NM, STEP_RAD};
 use host_tests::{grid, oracle};
+use model::calibration::correction::{BOOT_MIN_TICKS, BOOT_TICKS};
 use plant::harness::{Disturbance, Metrics, Scenario};
 use plant::overrides::Override;
+use plant::ENCODER_COUNT_RAD;
 
 const OVERSHOOT_MAX_PCT: f64 = 5.0;
 const SETTLE_MAX_S: f64 = 0.4;
@@ -526,8 +528,8 @@ fn the_boot_window_holds_the_loaded_link_unless_the_board_boots_under_its_load()
     for under_load in [false, true] {
         let mut sc = case.scenario();
         sc.boot_held = !under_load;
-        // Ticks counted from power-up: the held window's 32 come before the run's tick 0.
-        let boot = if under_load { 0 } else { 32 };
+        // Ticks counted from power-up: the held window comes before the run's tick 0.
+        let boot = if under_load { 0 } else { u32::from(BOOT_TICKS) };
         let mut first = None;
         plant::harness::run(&sc, |s| {
             if first.is_none() && s.duty != 0 {
@@ -536,11 +538,11 @@ fn the_boot_window_holds_the_loaded_link_unless_the_board_boots_under_its_load()
         })
         .expect("run");
         let (tick, fallen) = first.expect("the servo drives");
-        let counts = fallen.abs() / (2.0 * std::f64::consts::PI / 4096.0);
+        let counts = fallen.abs() / ENCODER_COUNT_RAD;
         println!("booted under its load {under_load}: first drive at tick {tick} after power-up, the link {counts:.2} counts from where it started");
         if under_load {
             assert!(
-                (8..32).contains(&tick),
+                (u32::from(BOOT_MIN_TICKS)..u32::from(BOOT_TICKS)).contains(&tick),
                 "the window ends early: tick {tick}"
             );
             assert!(counts >= 1.0, "the link fell {counts:.2} counts");

@@ -16,8 +16,8 @@
 //! `VSA_GRID_CLUTCH_TOLERANCE_UM=1000` runs every case with the clutch tolerance a board
 //! takes until a calibration confirms the clutch (the weak capacity and the clutch
 //! monitor, docs/calibration.md). `nominal_actuator_grid_booted_under_its_load` runs the
-//! nominal cases on a board powered up with the load hanging (its dump files
-//! `PREFIX.boot-under-load.SEED.tsv`), `VSA_GRID_BOOT_UNDER_LOAD=1` every grid's cases.
+//! nominal cases on a board powered up with the load hanging, `VSA_GRID_BOOT_UNDER_LOAD=1`
+//! every grid's cases (their dump files `PREFIX.boot-under-load.SEED.tsv`).
 //! The long run is `VSA_GRID_RUNS=5000 cargo test --release -p host-tests --test grid --
 //! --nocapture`. Limits not yet met are listed in [`OPEN`]: they are measured and
 //! printed but only enforced with `VSA_GRID_STRICT=1`.
@@ -68,7 +68,8 @@ fn sweep(label: &str, off_nominal: bool, seed_offset: u64, boot_under_load: bool
         .map(|o| Override::parse(o).unwrap_or_else(|e| panic!("VSA_GRID_PLANT {o}: {e}")))
         .collect();
     let tolerance_um = env_or("VSA_GRID_CLUTCH_TOLERANCE_UM", 0) as u32;
-    let every_boot_under_load = std::env::var("VSA_GRID_BOOT_UNDER_LOAD").is_ok_and(|v| v == "1");
+    let boot_under_load =
+        boot_under_load || std::env::var("VSA_GRID_BOOT_UNDER_LOAD").is_ok_and(|v| v == "1");
     let outcomes: Vec<Outcome> = grid::cases(n, seed, off_nominal)
         .into_iter()
         .enumerate()
@@ -78,7 +79,7 @@ fn sweep(label: &str, off_nominal: bool, seed_offset: u64, boot_under_load: bool
                 c.plant.set(*o);
             }
             c.clutch_tolerance_um = tolerance_um;
-            c.boot_under_load = boot_under_load || every_boot_under_load;
+            c.boot_under_load = boot_under_load;
             grid::run(i, &c)
         })
         .collect();

@@ -2,7 +2,7 @@
 
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, ExitCode};
 
 /// The workspace root (the parent of `xtask/`). Cargo reads `.cargo/config.toml` from
 /// the directory it runs in, so every cargo call starts here.
@@ -36,6 +36,23 @@ pub fn run_status(cmd: &mut Command) -> Result<()> {
         bail!("{} exited with {status}", describe(cmd));
     }
     Ok(())
+}
+
+/// Whether we run as root (`id -u` prints 0).
+pub fn is_root() -> bool {
+    Command::new("id")
+        .arg("-u")
+        .output()
+        .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).trim() == "0")
+}
+
+/// The process exit code of a check or child that succeeded or not.
+pub fn exit_code(success: bool) -> ExitCode {
+    if success {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    }
 }
 
 /// `program arg arg …` for messages.

@@ -39,9 +39,5 @@ pub fn run(features: &[String]) -> Result<ExitCode> {
         .arg(&elf)
         .status()
         .context("running probe-rs")?;
-    Ok(if status.success() {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::FAILURE
-    })
+    Ok(crate::cmd::exit_code(status.success()))
 }

@@ -7,7 +7,7 @@ use std::process::{Command, ExitCode};
 
 use anyhow::{ensure, Context, Result};
 
-use crate::cmd::workspace_root;
+use crate::cmd::{exit_code, workspace_root};
 use crate::venv;
 
 /// The analysis with numpy and scipy from target/venv.
@@ -26,11 +26,7 @@ pub fn run(dumps: &[PathBuf], every: u32, links: &str) -> Result<ExitCode> {
         .args(dumps)
         .status()
         .context("running flex_bound.py")?;
-    Ok(if status.success() {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::FAILURE
-    })
+    Ok(exit_code(status.success()))
 }
 
 /// The program against the rigid bound (`flex_bound.py --check`); its line on success.

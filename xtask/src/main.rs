@@ -233,11 +233,7 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             scenarios::print_host_comparison(id, &overrides, &outcome)?;
             Ok(code)
         }
-        Task::Test => Ok(if test::run()? {
-            ExitCode::SUCCESS
-        } else {
-            ExitCode::FAILURE
-        }),
+        Task::Test => Ok(cmd::exit_code(test::run()?)),
         Task::Flash { features } => flash::run(&features),
         Task::E2e { board } => board_check(board, e2e::run),
         Task::Persistence { board } => board_check(board, persistence::run),

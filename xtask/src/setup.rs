@@ -61,11 +61,7 @@ pub fn ensure_qemu() -> Result<()> {
     let install = format!(
         "apt-get update && apt-get install -y --no-install-recommends --no-remove {QEMU_PACKAGE}"
     );
-    let is_root = Command::new("id")
-        .arg("-u")
-        .output()
-        .map(|o| String::from_utf8_lossy(&o.stdout).trim() == "0")
-        .unwrap_or(false);
+    let is_root = crate::cmd::is_root();
     let has_apt = Command::new("apt-get").arg("--version").output().is_ok();
     if !(is_root && has_apt) {
         bail!(

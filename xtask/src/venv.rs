@@ -8,7 +8,7 @@ use std::process::{Command, Stdio};
 
 use anyhow::{bail, Context, Result};
 
-use crate::cmd::{run_status, target_dir};
+use crate::cmd::{is_root, run_status, target_dir};
 
 /// The venv's python with `modules` importable: makes the venv and `pip install`s
 /// `packages` (their PyPI names) when an import fails.
@@ -48,11 +48,7 @@ pub fn python_with(modules: &str, packages: &[&str]) -> Result<PathBuf> {
 /// `python3-venv` with apt-get, as root, never removing a package (see `setup`).
 fn install_venv_package() -> Result<()> {
     let install = "apt-get install -y --no-install-recommends --no-remove python3-venv";
-    let is_root = Command::new("id")
-        .arg("-u")
-        .output()
-        .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).trim() == "0");
-    if !is_root {
+    if !is_root() {
         bail!("python3 -m venv failed; install the venv module with:\n    sudo {install}");
     }
     eprintln!("xtask: python3's venv module is missing; {install}");

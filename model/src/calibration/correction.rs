@@ -26,7 +26,7 @@ pub const BOOT_TICKS: u16 = 32;
 /// A link that turns this many encoder counts during the window (falling under a load
 /// with the bridge off) ends it early, after at least [`BOOT_MIN_TICKS`]: the servo then
 /// catches it sooner (docs/calibration.md, "The link's absolute angle at start-up").
-pub const BOOT_MOVED_COUNTS: i32 = 2;
+pub const BOOT_MOVED_COUNTS: u32 = 2;
 /// The fewest ticks a boot window averages (the current offset's noise ×2 of the full
 /// window's).
 pub const BOOT_MIN_TICKS: u16 = 8;
@@ -413,7 +413,7 @@ impl Corrector {
             .enc_q16
             .wrapping_sub(self.boot_start_q16)
             .unsigned_abs()
-            >= BOOT_MOVED_COUNTS.unsigned_abs() << 16;
+            >= BOOT_MOVED_COUNTS << 16;
         if moved && done >= BOOT_MIN_TICKS {
             self.boot_left = 0;
         }
