@@ -46,7 +46,8 @@ use model::control::schedule::{
     OBSERVER_RATIO, PRESSED_LOAD_NM, RESISTANCE_LOW, RESISTANCE_TOLERANCE, REST_LOAD_NM,
     REST_TORQUE_NM, REST_ZONE_FREE_PLAYS, SUPPLY_TOLERANCE, TORQUE_FEEDBACK_CORNER,
 };
-use model::control::{dash, move_drive, Command, Config, Schedule};
+use model::control::shaper::SHAPER_LEN;
+use model::control::{dash, move_drive, Command, Config, Schedule, BW_MAX, BW_RATIO};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
 use model::servo::{brakes_on, BridgeDemand, TickInput};
 use model::supervisor::{Fault, FaultCode, FaultSet, Supervisor};
@@ -154,6 +155,9 @@ pub struct FloatSchedule {
     ff_sine_acc: f32,
     /// J_l/k, s² (c_ω = ω²·J_l/k).
     jl_over_k: f32,
+    /// The raw step's shaper delay π/ω_a, ticks, where the beams set the bandwidth; 0
+    /// elsewhere (`model::control::shaper`).
+    shaper_ticks: usize,
     ff_defl: f32,
     j_link: f32,
     inv_k: f32,
@@ -246,6 +250,14 @@ impl FloatSchedule {
             ff_sine_vel: dpv * r * bv / kt,
             ff_sine_acc: dpv * r * j_g / kt,
             jl_over_k: j_l / k,
+            shaper_ticks: {
+                let w_a = libm::sqrtf(k / j_l);
+                if w_a >= (BW_RATIO * BW_MAX) as f32 {
+                    0
+                } else {
+                    (libm::roundf(PI * 1000.0 / w_a) as usize).clamp(1, SHAPER_LEN - 1)
+                }
+            },
             ff_defl: dpv * ke * 1000.0,
             j_link: j_l,
             inv_k: 1.0 / k,
@@ -326,6 +338,36 @@ enum Mode {
         drive_model: f32,
         brake_scaled: f32,
     },
+    /// A shaped raw step whose profile has landed: the shaper's last ticks.
+    Tail {
+        target: f32,
+        left: usize,
+    },
+}
+
+/// The raw step's ZV shaper (`model::control::shaper`): the last `SHAPER_LEN` ticks of
+/// the profile (position, ṙ, r̈) and the delay, 0 when off.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct FloatShaper {
+    delay: usize,
+    head: usize,
+    samples: [(f32, f32, f32); SHAPER_LEN],
+}
+
+impl FloatShaper {
+    const OFF: FloatShaper = FloatShaper {
+        delay: 0,
+        head: 0,
+        samples: [(0.0, 0.0, 0.0); SHAPER_LEN],
+    };
+
+    /// ½ of this tick plus ½ of the one `delay` ticks ago.
+    fn shape(&mut self, p: f32, v: f32, a: f32) -> (f32, f32, f32) {
+        self.head = (self.head + 1) % SHAPER_LEN;
+        self.samples[self.head] = (p, v, a);
+        let (op, ov, oa) = self.samples[(self.head + SHAPER_LEN - self.delay) % SHAPER_LEN];
+        (0.5 * (p + op), 0.5 * (v + ov), 0.5 * (a + oa))
+    }
 }
 
 /// The raw step's limits in duty terms (`model::control::dash`): the current and duty
@@ -360,6 +402,9 @@ pub struct FloatTrajectory {
     pos: f32,
     vel: f32,
     acc: f32,
+    /// A raw step's unshaped profile position, rad, and its shaper.
+    raw: f32,
+    shaper: FloatShaper,
 }
 
 impl FloatTrajectory {
@@ -372,7 +417,7 @@ impl FloatTrajectory {
     /// `true` while a raw step runs.
     #[must_use]
     pub const fn is_dash(&self) -> bool {
-        matches!(self.mode, Mode::Dash { .. })
+        matches!(self.mode, Mode::Dash { .. } | Mode::Tail { .. })
     }
 
     /// Holding at `position` (rad).
@@ -383,6 +428,8 @@ impl FloatTrajectory {
             pos: position,
             vel: 0.0,
             acc: 0.0,
+            raw: position,
+            shaper: FloatShaper::OFF,
         }
     }
 
@@ -457,7 +504,7 @@ impl FloatTrajectory {
 
     /// A raw step along the profile of `model::control::dash`, planned with `hold` ‰ of
     /// integrator; a jump where the limits leave no acceleration.
-    pub fn step(&mut self, target: f32, l: &FloatDashLimits, hold: f32) {
+    pub fn step(&mut self, target: f32, l: &FloatDashLimits, hold: f32, shaper_ticks: usize) {
         let sign = if target >= self.pos { 1.0 } else { -1.0 };
         let mut accel = l.current_fraction * (l.current_duty - hold * sign) / l.ff_acc;
         let mut brake = l.current_fraction * (l.current_duty + hold * sign) / l.ff_acc;
@@ -498,6 +545,12 @@ impl FloatTrajectory {
             drive_model: 0.0,
             brake_scaled: 0.0,
         };
+        self.raw = self.pos;
+        self.shaper = FloatShaper::OFF;
+        if self.vel == 0.0 && self.acc == 0.0 {
+            self.shaper.delay = shaper_ticks;
+            self.shaper.samples = [(self.pos, 0.0, 0.0); SHAPER_LEN];
+        }
     }
 
     /// A raw step's drive in this tick (`model::control::dash`): the output's acceleration
@@ -542,7 +595,7 @@ impl FloatTrajectory {
                 brake_scaled,
             } => {
                 let s = *speed;
-                let left = (*target - self.pos) * *sign;
+                let left = (*target - self.raw) * *sign;
                 let mut next = if *braking == 0.0 && limited == *sign && s > 0.0 {
                     s
                 } else if *braking == 0.0 {
@@ -572,16 +625,40 @@ impl FloatTrajectory {
                     }
                 }
                 let travel = (s + next) * DT / 2.0;
-                if *braking != 0.0 && (next <= 0.0 || left - travel <= 0.0) {
-                    self.pos = *target;
-                    self.vel = 0.0;
-                    self.acc = 0.0;
-                    self.mode = Mode::Hold;
+                let (p, v, a, done) = if *braking != 0.0 && (next <= 0.0 || left - travel <= 0.0) {
+                    (*target, 0.0, 0.0, true)
                 } else {
                     *speed = next;
-                    self.pos += travel * *sign;
-                    self.vel = next * *sign;
-                    self.acc = (next - s) * 1000.0 * *sign;
+                    (
+                        self.raw + travel * *sign,
+                        next * *sign,
+                        (next - s) * 1000.0 * *sign,
+                        false,
+                    )
+                };
+                self.raw = p;
+                if self.shaper.delay > 0 {
+                    (self.pos, self.vel, self.acc) = self.shaper.shape(p, v, a);
+                    if done {
+                        self.mode = Mode::Tail {
+                            target: p,
+                            left: self.shaper.delay,
+                        };
+                    }
+                } else {
+                    (self.pos, self.vel, self.acc) = (p, v, a);
+                    if done {
+                        self.mode = Mode::Hold;
+                    }
+                }
+            }
+            Mode::Tail { target, left } => {
+                *left -= 1;
+                if *left == 0 {
+                    (self.pos, self.vel, self.acc) = (*target, 0.0, 0.0);
+                    self.mode = Mode::Hold;
+                } else {
+                    (self.pos, self.vel, self.acc) = self.shaper.shape(*target, 0.0, 0.0);
                 }
             }
             Mode::Quintic {
@@ -829,8 +906,12 @@ impl FloatController {
                     small_step: dash::SMALL_STEP_FREE_PLAYS as f32 * s.free_play,
                     held_min: s.float_load / 2.0,
                 };
-                self.traj
-                    .step(i32f32(target.to_bits()), &limits, self.integ);
+                self.traj.step(
+                    i32f32(target.to_bits()),
+                    &limits,
+                    self.integ,
+                    s.shaper_ticks,
+                );
             }
             _ => self.traj.command(cmd),
         }

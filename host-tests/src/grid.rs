@@ -437,6 +437,38 @@ pub fn light_loads_settling_late() -> [Case; 3] {
     ]
 }
 
+/// Three nominal grid cases of raw steps at soft settings (L = 7.6–7.9 mm) under light
+/// loads, whose link rang on the beams after the profile's torque steps and settled at
+/// 2.01 / 1.30 / 1.34 times their limit before the shaper (docs/design.md §11, "Raw steps
+/// at soft settings: the shaper"): seed 104 #143, seed 102 #209 and seed 116 #116,
+/// written out in full.
+#[must_use]
+pub fn soft_raw_steps_ringing() -> [Case; 3] {
+    [
+        Case::written(
+            7610,
+            3.933_910_675_761_376_5e-4,
+            -0.072_318_48,
+            Motion::Step(-0.074_266_371_625_476_15),
+            "",
+        ),
+        Case::written(
+            7787,
+            1.218_781_767_735_710_7e-3,
+            -0.080_963_3,
+            Motion::Step(0.349_077_164_626_063_3),
+            "",
+        ),
+        Case::written(
+            7934,
+            8.819_417_596_481_171e-4,
+            -0.063_871_1,
+            Motion::Step(0.226_953_500_515_329_28),
+            "",
+        ),
+    ]
+}
+
 /// Three off-nominal grid cases of a warm motor (R ×1.21…×1.36, links 1.9–2.5× heavier
 /// than configured) holding 0.16–0.21 N·m, which overshot a short step or move by 27.2, 25.3
 /// and 21.0 % before the resistance was tracked without a calibration (docs/design.md §11,

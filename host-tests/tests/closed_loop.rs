@@ -310,6 +310,13 @@ fn a_light_load_still_off_its_count_is_pushed_in_within_the_settling_limit() {
     assert_every_limit_but_the_time_bound(&grid::light_loads_settling_late());
 }
 
+/// Raw steps at soft settings go through the shaper: the three nominal grid cases of
+/// `grid::soft_raw_steps_ringing` meet every limit but the raw steps' time-optimal bound.
+#[test]
+fn raw_steps_at_soft_settings_settle_without_ringing() {
+    assert_every_limit_but_the_time_bound(&grid::soft_raw_steps_ringing());
+}
+
 /// Runs `cases` as the grid does and checks every limit of the grid but the raw steps'
 /// time-optimal bound (still open there).
 fn assert_every_limit_but_the_time_bound(cases: &[grid::Case]) {

@@ -1018,6 +1018,42 @@ mod tests {
     }
 
     #[test]
+    fn raw_step_shaper_delay_is_half_the_link_ringing_period_where_the_beams_set_the_bandwidth() {
+        let d = Design::paper();
+        // (L mm, J_l kg·mm², the branch expected: 0 none, 1 shaped, 2 clamped)
+        for (l, j, branch) in [
+            (1, 1000, 0),
+            (3, 1000, 0),
+            (5, 1000, 1),
+            (7, 1000, 1),
+            (8, 5000, 1),
+            (8, 200_000, 2),
+        ] {
+            let mut cfg = Config::paper(Length::from_int(l));
+            cfg.link_inertia = Inertia::from_int(j);
+            let s = Schedule::new(&d, &cfg).unwrap();
+            let k = s.stiffness().get().to_num::<f64>();
+            let wa = (k / (f64::from(j) * 1e-6)).sqrt();
+            let ticks = core::f64::consts::PI / wa * 1000.0;
+            let want = match branch {
+                0 => {
+                    assert!(wa >= 300.0, "L = {l}: ω_a {wa}");
+                    0
+                }
+                1 => {
+                    assert!(wa < 300.0 && ticks < 63.0, "L = {l}: ω_a {wa}");
+                    ticks.round() as u8
+                }
+                _ => {
+                    assert!(ticks > 63.0, "L = {l}: {ticks} ticks");
+                    63
+                }
+            };
+            assert_eq!(s.shaper_ticks, want, "L = {l} mm, J_l {j} kg·mm²");
+        }
+    }
+
+    #[test]
     fn clutch_by_stiffness() {
         let d = Design::paper();
         let mut cfg = Config::paper(Length::from_int(3));

@@ -55,6 +55,7 @@ pub mod move_drive;
 pub mod move_duration;
 pub mod rest_resistance;
 pub mod schedule;
+pub mod shaper;
 pub mod sine;
 pub mod sine_feedforward;
 pub mod speed_scale;

@@ -11,6 +11,7 @@ use super::dash::{self, DashGains};
 use super::error::ControlError;
 use super::gain::{sat_i32, Gain, Q16_ONE};
 use super::move_duration;
+use super::shaper::SHAPER_LEN;
 use super::validate::validate;
 use super::wide::{add, div, mul, sub, to_gain, to_q16, to_q32, wide};
 use crate::beam::Setting;
@@ -168,6 +169,9 @@ pub struct Schedule {
     /// dt = 1 ms (rad/s → rad per tick, applied wide) and the complementary filter's
     /// pull 2·ω_o·dt per tick.
     pub(crate) dt: Gain,
+    /// A raw step's shaper delay Δ = π/ω_a, ticks, where the beams set the bandwidth;
+    /// 0 elsewhere ([`super::shaper`]).
+    pub(crate) shaper_ticks: u8,
     pub(crate) obs_beta: Gain,
     /// The bias integrator's gain ω_o²·dt (1/s per tick).
     pub(crate) obs_beta2: Gain,
@@ -327,6 +331,22 @@ fn bandwidth(cfg: &Config, stiffness: Stiffness) -> Result<Frequency, ControlErr
             by_k.min(Frequency::from_int(BW_MAX))
         }
     })
+}
+
+/// The raw step's shaper delay ([`super::shaper`]): round(π/ω_a) in ticks where the
+/// beams set the bandwidth (ω_a < `BW_RATIO`·`BW_MAX`: the loop cannot damp the ringing),
+/// at most `SHAPER_LEN` − 1; 0 (no shaper) at stiffer settings.
+fn shaper_ticks(cfg: &Config, stiffness: Stiffness) -> Result<u8, ControlError> {
+    let w_a = natural_frequency(stiffness, cfg.link_inertia)?;
+    if w_a >= Frequency::from_int(BW_RATIO * BW_MAX) {
+        return Ok(0);
+    }
+    let ticks = div(
+        mul(I64F64::PI, I64F64::from_num(TICKS_PER_S))?,
+        wide(w_a.get()),
+    )?;
+    let max = (SHAPER_LEN - 1) as i64;
+    Ok(ticks.round().to_num::<i64>().clamp(1, max) as u8)
 }
 
 /// PID gains by pole placement: (s + ω_c)³ on J·s³ + (b_m + c·K_d)·s² + c·K_p·s + c·K_i
@@ -508,6 +528,7 @@ impl Schedule {
             contact_per_amp: to_gain(mul(wide(CONTACT_CURRENT_TOLERANCE), kt)?)?,
             kd: to_gain(wide(gains.kd))?,
             dt: to_gain(dt)?,
+            shaper_ticks: shaper_ticks(cfg, stiffness)?,
             obs_beta: observer_pull(w, OBSERVER_RATIO, dt)?,
             obs_beta_move: observer_pull(w, MOVE_OBSERVER_RATIO, dt)?,
             rest_zone_q16: to_q16(mul(free_play, wide(REST_ZONE_FREE_PLAYS))?)?,

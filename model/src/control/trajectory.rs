@@ -28,6 +28,7 @@ use super::dash::Dash;
 use super::error::ControlError;
 use super::gain::{q32_to_q16, sat_i32};
 use super::schedule::Schedule;
+use super::shaper::Shaper;
 use super::sine::{cos_q30, sin_q30};
 use crate::units::{Angle, Frequency};
 
@@ -98,6 +99,11 @@ enum Mode {
         dphase: u32,
     },
     Dash(Dash),
+    /// A shaped raw step whose profile has landed: the shaper's last Δ ticks.
+    Tail {
+        target: i64,
+        left: u8,
+    },
 }
 
 /// The reference generator (see the module docs).
@@ -107,6 +113,9 @@ pub struct Trajectory {
     pos: i64,
     vel: i32,
     acc: i32,
+    /// A raw step's unshaped profile position (I32F32 rad bits), and its shaper.
+    raw: i64,
+    shaper: Shaper,
 }
 
 /// One tick of reference.
@@ -212,6 +221,8 @@ impl Trajectory {
             pos: position.to_bits(),
             vel: 0,
             acc: 0,
+            raw: position.to_bits(),
+            shaper: Shaper::OFF,
         }
     }
 
@@ -233,6 +244,7 @@ impl Trajectory {
             Mode::Quintic { target, .. } => target,
             Mode::Sine { center, .. } => center,
             Mode::Dash(d) => d.target(),
+            Mode::Tail { target, .. } => target,
         })
     }
 
@@ -251,10 +263,10 @@ impl Trajectory {
         }
     }
 
-    /// `true` while a raw step runs.
+    /// `true` while a raw step runs (its shaper's tail included).
     #[must_use]
     pub const fn is_dash(&self) -> bool {
-        matches!(self.mode, Mode::Dash(_))
+        matches!(self.mode, Mode::Dash(_) | Mode::Tail { .. })
     }
 
     /// `true` while a move is under way or a sine runs.
@@ -354,6 +366,13 @@ impl Trajectory {
         match Dash::plan(sched, self.pos, self.vel, target.to_bits(), hold_q16) {
             Some(d) => {
                 self.mode = Mode::Dash(d);
+                self.raw = self.pos;
+                // From rest at a soft setting the reference goes through the shaper.
+                self.shaper = if self.vel == 0 && self.acc == 0 {
+                    Shaper::start(sched.shaper_ticks, self.pos)
+                } else {
+                    Shaper::OFF
+                };
                 Ok(())
             }
             None => self.command(Command::Step { target }),
@@ -500,12 +519,37 @@ impl Trajectory {
                 self.acc = sat_i32(-((i64::from(*acc_amp) * s) >> 30));
             }
             Mode::Dash(d) => {
-                let t = d.advance(self.pos, limited);
-                self.pos = t.position;
-                self.vel = t.velocity_q16;
-                self.acc = t.acceleration_q16;
-                if t.done {
+                let t = d.advance(self.raw, limited);
+                self.raw = t.position;
+                if self.shaper.on() {
+                    (self.pos, self.vel, self.acc) =
+                        self.shaper
+                            .shape(t.position, t.velocity_q16, t.acceleration_q16);
+                    if t.done {
+                        self.mode = Mode::Tail {
+                            target: t.position,
+                            left: self.shaper.delay(),
+                        };
+                    }
+                } else {
+                    self.pos = t.position;
+                    self.vel = t.velocity_q16;
+                    self.acc = t.acceleration_q16;
+                    if t.done {
+                        self.mode = Mode::Hold;
+                    }
+                }
+            }
+            Mode::Tail { target, left } => {
+                *left = left.saturating_sub(1);
+                if *left == 0 {
+                    // The delayed half has landed too: exactly on the target.
+                    self.pos = *target;
+                    self.vel = 0;
+                    self.acc = 0;
                     self.mode = Mode::Hold;
+                } else {
+                    (self.pos, self.vel, self.acc) = self.shaper.shape(*target, 0, 0);
                 }
             }
         }
@@ -524,6 +568,61 @@ mod tests {
 
     fn q16(v: i32) -> f64 {
         f64::from(v) / 65536.0
+    }
+
+    /// A raw step at a soft setting: its reference is the unshaped profile averaged by hand
+    /// with itself Δ ticks older (the rest before the step), it ends Δ ticks after the
+    /// unshaped one, exactly on the target. Without the shaper (Δ = 0) the two are one.
+    #[test]
+    fn a_shaped_raw_step_is_the_profile_averaged_with_itself_delay_ago() {
+        let cfg = crate::control::Config::paper(crate::units::Length::from_int(7));
+        let mut sched = Schedule::new(&crate::design::Design::paper(), &cfg).unwrap();
+        let delay = usize::from(sched.shaper_ticks);
+        assert!(delay > 10, "shaped at 7 mm: Δ = {delay}");
+        let target = Angle::from_fixed(I32F32::lit("0.4"));
+        let run = |s: &Schedule| {
+            let mut t = Trajectory::new(Angle::from_fixed(I32F32::lit("0.1")));
+            t.step(target, s, 0).unwrap();
+            let mut out = vec![t.reference()];
+            while t.is_dash() {
+                out.push(t.advance());
+            }
+            out
+        };
+        let shaped = run(&sched);
+        sched.shaper_ticks = 0;
+        let raw = run(&sched);
+        assert_eq!(shaped.len(), raw.len() + delay, "Δ ticks longer");
+        let rest = raw[0];
+        let at = |k: usize| {
+            if k < raw.len() {
+                raw[k]
+            } else {
+                *raw.last().unwrap()
+            }
+        };
+        for (k, got) in shaped.iter().enumerate().take(shaped.len() - 1).skip(1) {
+            let now = at(k);
+            let old = if k > delay { at(k - delay) } else { rest };
+            let mean = now.position.to_bits() / 2 + old.position.to_bits() / 2;
+            // The delayed half is stored to Q24: within 2⁸ LSB of the exact mean.
+            assert!(
+                (shaped[k].position.to_bits() - mean).abs() <= 1 << 8,
+                "tick {k}"
+            );
+            let half = |a: i32, b: i32| a.div_euclid(2) + b.div_euclid(2);
+            assert_eq!(
+                shaped[k].velocity_q16,
+                half(now.velocity_q16, old.velocity_q16)
+            );
+            assert_eq!(
+                got.acceleration_q16,
+                half(now.acceleration_q16, old.acceleration_q16)
+            );
+        }
+        let last = *shaped.last().unwrap();
+        assert_eq!(last.position, target);
+        assert!(last.stationary());
     }
 
     #[test]
