@@ -252,7 +252,7 @@ impl FloatSchedule {
             jl_over_k: j_l / k,
             shaper_ticks: {
                 let w_a = libm::sqrtf(k / j_l);
-                if w_a >= (BW_RATIO * BW_MAX) as f32 {
+                if w_a >= (BW_RATIO * BW_MAX) as f32 || PI / w_a <= j * r / (kt * ke) {
                     0
                 } else {
                     (libm::roundf(PI * 1000.0 / w_a) as usize).clamp(1, SHAPER_LEN - 1)
@@ -342,31 +342,55 @@ enum Mode {
     Tail {
         target: f32,
         left: usize,
+        sign: f32,
     },
 }
 
-/// The raw step's ZV shaper (`model::control::shaper`): the last `SHAPER_LEN` ticks of
-/// the profile (position, ṙ, r̈) and the delay, 0 when off.
+/// The raw step's ZV shaper (`model::control::shaper`): the profile's change of speed
+/// along the step in each of its last `SHAPER_LEN` ticks (NaN at the landing), replayed
+/// `delay` ticks late; the delay is 0 when off.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct FloatShaper {
     delay: usize,
     head: usize,
-    samples: [(f32, f32, f32); SHAPER_LEN],
+    position: f32,
+    speed: f32,
+    changes: [f32; SHAPER_LEN],
 }
 
 impl FloatShaper {
     const OFF: FloatShaper = FloatShaper {
         delay: 0,
         head: 0,
-        samples: [(0.0, 0.0, 0.0); SHAPER_LEN],
+        position: 0.0,
+        speed: 0.0,
+        changes: [0.0; SHAPER_LEN],
     };
 
-    /// ½ of this tick plus ½ of the one `delay` ticks ago.
-    fn shape(&mut self, p: f32, v: f32, a: f32) -> (f32, f32, f32) {
+    /// ½ of this tick's (p, v, a) plus ½ of the profile `delay` ticks ago (direction
+    /// `sign`, landing on `target`).
+    fn shape(
+        &mut self,
+        (p, v, a): (f32, f32, f32),
+        change: f32,
+        landed: bool,
+        sign: f32,
+        target: f32,
+    ) -> (f32, f32, f32) {
         self.head = (self.head + 1) % SHAPER_LEN;
-        self.samples[self.head] = (p, v, a);
-        let (op, ov, oa) = self.samples[(self.head + SHAPER_LEN - self.delay) % SHAPER_LEN];
-        (0.5 * (p + op), 0.5 * (v + ov), 0.5 * (a + oa))
+        self.changes[self.head] = if landed { f32::NAN } else { change };
+        let old = self.changes[(self.head + SHAPER_LEN - self.delay) % SHAPER_LEN];
+        let (ov, oa) = if old.is_nan() {
+            self.position = target;
+            self.speed = 0.0;
+            (0.0, 0.0)
+        } else {
+            let next = self.speed + old;
+            self.position += (self.speed + next) * DT / 2.0 * sign;
+            self.speed = next;
+            (next * sign, old * 1000.0 * sign)
+        };
+        (0.5 * (p + self.position), 0.5 * (v + ov), 0.5 * (a + oa))
     }
 }
 
@@ -549,7 +573,7 @@ impl FloatTrajectory {
         self.shaper = FloatShaper::OFF;
         if self.vel == 0.0 && self.acc == 0.0 {
             self.shaper.delay = shaper_ticks;
-            self.shaper.samples = [(self.pos, 0.0, 0.0); SHAPER_LEN];
+            self.shaper.position = self.pos;
         }
     }
 
@@ -638,11 +662,13 @@ impl FloatTrajectory {
                 };
                 self.raw = p;
                 if self.shaper.delay > 0 {
-                    (self.pos, self.vel, self.acc) = self.shaper.shape(p, v, a);
+                    (self.pos, self.vel, self.acc) =
+                        self.shaper.shape((p, v, a), next - s, done, *sign, *target);
                     if done {
                         self.mode = Mode::Tail {
                             target: p,
                             left: self.shaper.delay,
+                            sign: *sign,
                         };
                     }
                 } else {
@@ -652,13 +678,15 @@ impl FloatTrajectory {
                     }
                 }
             }
-            Mode::Tail { target, left } => {
+            Mode::Tail { target, left, sign } => {
                 *left -= 1;
                 if *left == 0 {
                     (self.pos, self.vel, self.acc) = (*target, 0.0, 0.0);
                     self.mode = Mode::Hold;
                 } else {
-                    (self.pos, self.vel, self.acc) = self.shaper.shape(*target, 0.0, 0.0);
+                    (self.pos, self.vel, self.acc) =
+                        self.shaper
+                            .shape((*target, 0.0, 0.0), 0.0, true, *sign, *target);
                 }
             }
             Mode::Quintic {

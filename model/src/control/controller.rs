@@ -1017,35 +1017,49 @@ mod tests {
         }
     }
 
+    /// Oracle: ω_a = √(k/J_l) and τ_m = (J_g + J_l)·R/(k_t·k_e) in f64 from the
+    /// configuration's own figures; shaped where ω_a < 300 rad/s and π/ω_a > τ_m.
     #[test]
-    fn raw_step_shaper_delay_is_half_the_link_ringing_period_where_the_beams_set_the_bandwidth() {
+    fn raw_step_shaper_delay_is_half_the_link_ringing_period_where_the_motor_lags_less() {
         let d = Design::paper();
-        // (L mm, J_l kg·mm², the branch expected: 0 none, 1 shaped, 2 clamped)
+        // (L mm, J_l kg·mm², the branch expected: 0 stiff, 1 motor lag, 2 shaped, 3 clamped)
         for (l, j, branch) in [
             (1, 1000, 0),
             (3, 1000, 0),
             (5, 1000, 1),
-            (7, 1000, 1),
-            (8, 5000, 1),
-            (8, 200_000, 2),
+            (7, 1000, 2),
+            (8, 5000, 2),
+            (8, 6000, 3),
         ] {
             let mut cfg = Config::paper(Length::from_int(l));
             cfg.link_inertia = Inertia::from_int(j);
             let s = Schedule::new(&d, &cfg).unwrap();
             let k = s.stiffness().get().to_num::<f64>();
-            let wa = (k / (f64::from(j) * 1e-6)).sqrt();
-            let ticks = core::f64::consts::PI / wa * 1000.0;
+            let j_l = f64::from(j) * 1e-6;
+            let wa = (k / j_l).sqrt();
+            let m = cfg.motor;
+            let tau_m = (m.rotor_inertia.get().to_num::<f64>() * 1e-6 + j_l)
+                * m.resistance_ohm.to_num::<f64>()
+                / (m.torque_constant.to_num::<f64>() * m.back_emf.to_num::<f64>());
+            let half = core::f64::consts::PI / wa;
             let want = match branch {
                 0 => {
                     assert!(wa >= 300.0, "L = {l}: ω_a {wa}");
                     0
                 }
                 1 => {
-                    assert!(wa < 300.0 && ticks < 63.0, "L = {l}: ω_a {wa}");
-                    ticks.round() as u8
+                    assert!(
+                        wa < 300.0 && half <= tau_m,
+                        "L = {l}: {half} s, τ_m {tau_m} s"
+                    );
+                    0
+                }
+                2 => {
+                    assert!(half > tau_m && half < 0.063, "L = {l}: {half} s");
+                    (half * 1000.0).round() as u8
                 }
                 _ => {
-                    assert!(ticks > 63.0, "L = {l}: {ticks} ticks");
+                    assert!(half > 0.063, "L = {l}: {half} s");
                     63
                 }
             };

@@ -137,7 +137,16 @@ pub(crate) struct DashTick {
     pub(crate) position: i64,
     pub(crate) velocity_q16: i32,
     pub(crate) acceleration_q16: i32,
+    /// The change of speed along the step in this tick, Q16 (0 at the landing).
+    pub(crate) change_q16: i32,
     pub(crate) done: bool,
+}
+
+/// The distance a tick covers from speed `s` to `next` along the step (trapezoidal rule),
+/// I32F32 rad bits: the profile's own position rule, which the shaper replays.
+#[inline]
+pub(crate) fn travel(dt: Gain, s: i32, next: i32) -> i64 {
+    dt.apply_wide(s.saturating_add(next)) >> 1
 }
 
 impl Dash {
@@ -237,6 +246,22 @@ impl Dash {
         self.target
     }
 
+    /// Whether the step goes up (+).
+    pub(crate) const fn up(&self) -> bool {
+        self.sign > 0
+    }
+
+    /// The tick, as the profile integrates it.
+    pub(crate) const fn dt(&self) -> Gain {
+        self.dt
+    }
+
+    /// Twice the largest change of speed the plan asks in a tick, Q16 (the braking that
+    /// lands on the target can exceed the planned deceleration a little).
+    pub(crate) fn max_change_q16(&self) -> i32 {
+        self.dt.apply(self.accel.max(self.brake)).saturating_mul(2)
+    }
+
     /// Advances one tick from `position`. Sign flips rather than products by the
     /// direction, and the 64-bit products only where a square needs them: this runs
     /// inside the control step's instruction budget.
@@ -256,7 +281,7 @@ impl Dash {
             s.saturating_sub(self.dt.apply(self.braking))
         };
         // Distance covered in this tick (trapezoidal rule), Q32 rad.
-        let mut travel = self.dt.apply_wide(s.saturating_add(next)) >> 1;
+        let mut travel = self::travel(self.dt, s, next);
         if self.braking == 0 && next > 0 && s > 0 {
             // Accelerating this tick would leave less than the braking distance,
             // s² ≥ 2·a_brake·d: brake from now on, at the deceleration that lands on the
@@ -276,7 +301,7 @@ impl Dash {
                 let s2 = i64::from(s) * i64::from(s);
                 self.braking = div_q32_by_q16(s2, q32_to_q16(left).saturating_mul(2)).max(1);
                 next = s.saturating_sub(self.dt.apply(self.braking));
-                travel = self.dt.apply_wide(s.saturating_add(next)) >> 1;
+                travel = self::travel(self.dt, s, next);
             }
         }
         if self.braking != 0 && (next <= 0 || left <= travel) {
@@ -284,6 +309,7 @@ impl Dash {
                 position: self.target,
                 velocity_q16: 0,
                 acceleration_q16: 0,
+                change_q16: 0,
                 done: true,
             };
         }
@@ -302,6 +328,7 @@ impl Dash {
             position,
             velocity_q16,
             acceleration_q16,
+            change_q16: next.saturating_sub(s),
             done: false,
         }
     }

@@ -10,7 +10,8 @@
 //!    filter, so that the observer's jump on a duty step is no torque), blended with the
 //!    pot's deflection-based estimate by inverse variance;
 //! 4. reference r, ṙ, r̈ from [`trajectory`] (a raw step along the near-time-optimal
-//!    profile of [`dash`]; a move no shorter than the limits allow, [`move_duration`]);
+//!    profile of [`dash`], at soft settings through the ZV shaper of [`shaper`]; a move no
+//!    shorter than the limits allow, [`move_duration`]);
 //!    a move's r̈ feed-forward scaled for the actuator it meets ([`move_drive`]), and its
 //!    ṙ feed-forward for the observer's scale against the gear's travel ([`speed_scale`],
 //!    fitted after each tick by `Controller::track_speed`);

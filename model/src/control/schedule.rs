@@ -334,17 +334,21 @@ fn bandwidth(cfg: &Config, stiffness: Stiffness) -> Result<Frequency, ControlErr
 }
 
 /// The raw step's shaper delay ([`super::shaper`]): round(π/ω_a) in ticks where the
-/// beams set the bandwidth (ω_a < `BW_RATIO`·`BW_MAX`: the loop cannot damp the ringing),
-/// at most `SHAPER_LEN` − 1; 0 (no shaper) at stiffer settings.
-fn shaper_ticks(cfg: &Config, stiffness: Stiffness) -> Result<u8, ControlError> {
+/// beams set the bandwidth (ω_a < `BW_RATIO`·`BW_MAX`: the loop cannot damp the ringing)
+/// and half a ringing period is longer than the motor's mechanical time constant
+/// τ_m = J·R/(k_t·k_e) (a faster ringing the motor's own lag already smooths out of the
+/// profile's torque steps), at most `SHAPER_LEN` − 1; 0 (no shaper) elsewhere.
+fn shaper_ticks(cfg: &Config, p: &Drive, stiffness: Stiffness) -> Result<u8, ControlError> {
     let w_a = natural_frequency(stiffness, cfg.link_inertia)?;
     if w_a >= Frequency::from_int(BW_RATIO * BW_MAX) {
         return Ok(0);
     }
-    let ticks = div(
-        mul(I64F64::PI, I64F64::from_num(TICKS_PER_S))?,
-        wide(w_a.get()),
-    )?;
+    let half_period = div(I64F64::PI, wide(w_a.get()))?;
+    let tau_m = div(mul(p.j, p.resistance)?, mul(p.kt, p.ke)?)?;
+    if half_period <= tau_m {
+        return Ok(0);
+    }
+    let ticks = mul(half_period, I64F64::from_num(TICKS_PER_S))?;
     let max = (SHAPER_LEN - 1) as i64;
     Ok(ticks.round().to_num::<i64>().clamp(1, max) as u8)
 }
@@ -528,7 +532,7 @@ impl Schedule {
             contact_per_amp: to_gain(mul(wide(CONTACT_CURRENT_TOLERANCE), kt)?)?,
             kd: to_gain(wide(gains.kd))?,
             dt: to_gain(dt)?,
-            shaper_ticks: shaper_ticks(cfg, stiffness)?,
+            shaper_ticks: shaper_ticks(cfg, &p, stiffness)?,
             obs_beta: observer_pull(w, OBSERVER_RATIO, dt)?,
             obs_beta_move: observer_pull(w, MOVE_OBSERVER_RATIO, dt)?,
             rest_zone_q16: to_q16(mul(free_play, wide(REST_ZONE_FREE_PLAYS))?)?,

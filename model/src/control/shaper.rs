@@ -12,43 +12,48 @@
 //!
 //! so the ringing the second half starts cancels the first half's at ω_a, for the link the
 //! controller is configured with; at the step's end the reference takes Δ ticks more. The
-//! profile runs unshaped (its own position, its drive and braking rules), and the shaper
-//! keeps its last `SHAPER_LEN` ticks. Per tick: one sample stored, one read, three
-//! halvings and adds.
+//! profile runs unshaped (its own position, its drive and braking rules). The delayed half
+//! is the profile replayed: the shaper keeps the profile's change of speed along the step
+//! in each of its last `SHAPER_LEN` ticks (an `i16`, Q16 rad/s: the controller's state is
+//! copied whole while a board starts, and its stack has room for little more) and
+//! integrates them Δ ticks late with the profile's own rule ([`dash::travel`]), so the
+//! delayed half is the profile itself, bit for bit. Per tick: one change stored, one read,
+//! one travel, three halvings and adds.
 //!
-//! Formats: positions I32F32 rad bits, stored as Q24 offsets from the step's start (a
-//! step of up to 128 rad; 6e-8 rad resolution for the delayed half); ṙ and r̈ Q16.
+//! Formats: positions I32F32 rad bits; ṙ, r̈ and the speed along the step Q16.
 
-use super::gain::sat_i32;
+use super::dash;
+use super::gain::Gain;
 
 /// Ticks of profile the shaper keeps: the longest delay is `SHAPER_LEN` − 1 ticks, a
 /// link ringing at 50 rad/s or faster (the acceptance range, docs/design.md §9, reaches
 /// 53 rad/s: L = 8 mm with J_l = 5e-3 kg·m²); a slower one is shaped for 50 rad/s.
 pub const SHAPER_LEN: usize = 64;
-/// Bits dropped from a position offset when it is stored (Q32 → Q24).
-const OFFSET_SHIFT: u32 = 8;
+/// The stored change that marks the profile's landing on its target.
+const LANDED: i16 = i16::MIN;
+/// The largest change of speed a tick may store: a profile that changes its speed faster
+/// (over 0.5 rad/s per tick) is not shaped.
+pub const MAX_CHANGE_Q16: i32 = i16::MAX as i32;
 
-/// One stored tick of the unshaped profile.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-struct Sample {
-    /// Position less the step's start, rad Q24.
-    offset: i32,
-    /// ṙ, rad/s Q16.
-    velocity: i32,
-    /// r̈, rad/s² Q16.
-    acceleration: i32,
-}
-
-/// The shaper's state: its delay, the stored ticks and where the step started.
+/// The shaper's state: its delay, the stored changes and the delayed half's replay.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Shaper {
     /// Δ in ticks, 1…`SHAPER_LEN` − 1; 0 when the reference is not shaped.
     delay: u8,
-    /// Index of the newest sample.
+    /// Index of the newest change.
     head: u8,
-    /// The step's start, rad I32F32 bits.
-    origin: i64,
-    samples: [Sample; SHAPER_LEN],
+    /// The delayed profile: its position (I32F32 rad bits) and speed along the step (Q16).
+    position: i64,
+    speed: i32,
+    /// Change of speed along the step in each stored tick, Q16 (`LANDED` at the landing).
+    changes: [i16; SHAPER_LEN],
+}
+
+/// The delayed half of the profile this tick, and the shaped reference.
+pub(crate) struct Shaped {
+    pub(crate) position: i64,
+    pub(crate) velocity_q16: i32,
+    pub(crate) acceleration_q16: i32,
 }
 
 impl Shaper {
@@ -56,24 +61,22 @@ impl Shaper {
     pub const OFF: Shaper = Shaper {
         delay: 0,
         head: 0,
-        origin: 0,
-        samples: [Sample {
-            offset: 0,
-            velocity: 0,
-            acceleration: 0,
-        }; SHAPER_LEN],
+        position: 0,
+        speed: 0,
+        changes: [0; SHAPER_LEN],
     };
 
     /// A shaper of `delay` ticks for a step from rest at `origin` (I32F32 rad bits): its
-    /// past is that rest. `delay` 0 (or none that fits) leaves it off.
+    /// past is that rest. `delay` 0, one that does not fit, or a profile that may change
+    /// its speed by more than `MAX_CHANGE_Q16` in a tick (`max_change_q16`) leave it off.
     #[must_use]
-    pub fn start(delay: u8, origin: i64) -> Shaper {
-        if delay == 0 || usize::from(delay) >= SHAPER_LEN {
+    pub fn start(delay: u8, origin: i64, max_change_q16: i32) -> Shaper {
+        if delay == 0 || usize::from(delay) >= SHAPER_LEN || max_change_q16 > MAX_CHANGE_Q16 {
             return Shaper::OFF;
         }
         Shaper {
             delay,
-            origin,
+            position: origin,
             ..Shaper::OFF
         }
     }
@@ -91,27 +94,52 @@ impl Shaper {
         self.delay
     }
 
-    /// Stores this tick of the profile and returns the shaped reference: the halves of
-    /// this tick and of the one Δ ticks ago.
+    /// Stores this tick's change of speed along the step (`change_q16`, or the landing
+    /// when `landed`), advances the delayed profile (direction `up`, tick `dt`, landing on
+    /// `target`) and returns the shaped reference: the halves of this tick's `now` and of
+    /// the delayed profile.
     #[inline]
-    pub fn shape(&mut self, position: i64, velocity: i32, acceleration: i32) -> (i64, i32, i32) {
+    pub(crate) fn shape(
+        &mut self,
+        now: &Shaped,
+        change_q16: i32,
+        landed: bool,
+        up: bool,
+        dt: Gain,
+        target: i64,
+    ) -> Shaped {
         let mask = SHAPER_LEN - 1;
         let head = (usize::from(self.head) + 1) & mask;
         self.head = head as u8;
-        self.samples[head] = Sample {
-            offset: sat_i32(position.saturating_sub(self.origin) >> OFFSET_SHIFT),
-            velocity,
-            acceleration,
+        // `start` bounds the profile's change: it fits (saturated all the same).
+        self.changes[head] = if landed {
+            LANDED
+        } else {
+            change_q16.clamp(-MAX_CHANGE_Q16, MAX_CHANGE_Q16) as i16
         };
-        let old = self.samples[(head + SHAPER_LEN - usize::from(self.delay)) & mask];
-        let old_position = self
-            .origin
-            .saturating_add(i64::from(old.offset) << OFFSET_SHIFT);
-        (
-            (position >> 1).saturating_add(old_position >> 1),
-            (velocity >> 1).saturating_add(old.velocity >> 1),
-            (acceleration >> 1).saturating_add(old.acceleration >> 1),
-        )
+        let old = self.changes[(head + SHAPER_LEN - usize::from(self.delay)) & mask];
+        let (velocity, acceleration) = if old == LANDED {
+            self.position = target;
+            self.speed = 0;
+            (0, 0)
+        } else {
+            let next = self.speed.saturating_add(i32::from(old));
+            let travel = dash::travel(dt, self.speed, next);
+            self.speed = next;
+            let a = i32::from(old) * 1000;
+            if up {
+                self.position = self.position.saturating_add(travel);
+                (next, a)
+            } else {
+                self.position = self.position.saturating_sub(travel);
+                (next.saturating_neg(), -a)
+            }
+        };
+        Shaped {
+            position: (now.position >> 1).saturating_add(self.position >> 1),
+            velocity_q16: (now.velocity_q16 >> 1).saturating_add(velocity >> 1),
+            acceleration_q16: (now.acceleration_q16 >> 1).saturating_add(acceleration >> 1),
+        }
     }
 }
 
@@ -121,57 +149,95 @@ mod tests {
 
     const ONE: i64 = 1 << 32;
 
-    #[test]
-    fn a_jump_becomes_two_halves_delay_apart() {
-        // The ZV shaper's impulse response: a jump of the profile from 0 to 1 rad shows
-        // half of it at once and the rest Δ ticks later.
-        let mut s = Shaper::start(5, 0);
-        let out: Vec<i64> = (0..8).map(|_| s.shape(ONE, 0, 0).0).collect();
-        assert_eq!(
-            out,
-            [ONE / 2, ONE / 2, ONE / 2, ONE / 2, ONE / 2, ONE, ONE, ONE]
-        );
+    /// dt = 1 ms as the schedule builds it.
+    fn dt() -> Gain {
+        Gain::new(fixed::types::I64F64::ONE / 1000).unwrap()
+    }
+
+    /// A made-up profile along +: speeds (Q16) tick by tick from rest, landing at the end.
+    fn profile(speeds: &[i32], origin: i64, target: i64) -> Vec<(Shaped, i32, bool)> {
+        let mut out = Vec::new();
+        let (mut p, mut s) = (origin, 0);
+        for &n in speeds {
+            p += dash::travel(dt(), s, n);
+            out.push((
+                Shaped {
+                    position: p,
+                    velocity_q16: n,
+                    acceleration_q16: (n - s) * 1000,
+                },
+                n - s,
+                false,
+            ));
+            s = n;
+        }
+        out.push((
+            Shaped {
+                position: target,
+                velocity_q16: 0,
+                acceleration_q16: 0,
+            },
+            0,
+            true,
+        ));
+        out
     }
 
     #[test]
-    fn shaped_is_the_mean_of_now_and_delay_ago() {
-        // Oracle: the sequence itself, averaged by hand with its own copy Δ = 3 ticks
-        // older (the past before the start is the rest at the origin).
-        let origin = 7 * ONE;
-        let seq: Vec<(i64, i32, i32)> = (1..=20i64)
-            .map(|k| {
-                (
-                    origin + k * k * (ONE / 1000),
-                    (k * 131) as i32,
-                    (1000 - k * 77) as i32,
-                )
-            })
+    fn the_shaped_reference_is_the_mean_of_now_and_delay_ago() {
+        // Oracle: the profile itself, averaged by hand with its own copy Δ = 4 ticks older
+        // (the rest at the origin before the start).
+        let origin = 3 * ONE;
+        let speeds: Vec<i32> = (1..=12)
+            .map(|k| 6000 * k.min(6))
+            .chain([20_000, 9_000, 1_000])
             .collect();
-        let mut s = Shaper::start(3, origin);
-        for (k, &(p, v, a)) in seq.iter().enumerate() {
-            let (op, ov, oa) = if k >= 3 { seq[k - 3] } else { (origin, 0, 0) };
-            let (sp, sv, sa) = s.shape(p, v, a);
-            // The stored position loses its 8 low bits (Q24): within 2⁸ LSB of the mean.
-            assert!((sp - (p / 2 + op / 2)).abs() <= 1 << 8, "tick {k}");
-            assert_eq!(sv, v.div_euclid(2) + ov.div_euclid(2), "tick {k}");
-            assert_eq!(sa, a.div_euclid(2) + oa.div_euclid(2), "tick {k}");
+        let seq = profile(&speeds, origin, 4 * ONE);
+        let delay = 4;
+        let mut s = Shaper::start(delay as u8, origin, 6000);
+        let rest = Shaped {
+            position: origin,
+            velocity_q16: 0,
+            acceleration_q16: 0,
+        };
+        for (k, (now, change, landed)) in seq.iter().enumerate() {
+            let old = if k >= delay { &seq[k - delay].0 } else { &rest };
+            let got = s.shape(now, *change, *landed, true, dt(), 4 * ONE);
+            let half = |a: i64, b: i64| a.div_euclid(2) + b.div_euclid(2);
+            assert_eq!(got.position, half(now.position, old.position), "tick {k}");
+            assert_eq!(
+                i64::from(got.velocity_q16),
+                half(now.velocity_q16.into(), old.velocity_q16.into()),
+                "tick {k}"
+            );
+            assert_eq!(
+                i64::from(got.acceleration_q16),
+                half(now.acceleration_q16.into(), old.acceleration_q16.into()),
+                "tick {k}"
+            );
         }
     }
 
     #[test]
-    fn off_and_out_of_range_delays_stay_off() {
-        assert!(!Shaper::start(0, ONE).on());
-        assert!(!Shaper::start(SHAPER_LEN as u8, ONE).on());
-        assert!(Shaper::start(SHAPER_LEN as u8 - 1, ONE).on());
+    fn a_landing_shows_in_the_delayed_half_delay_ticks_later() {
+        let mut s = Shaper::start(3, 0, 100);
+        let landed = Shaped {
+            position: ONE,
+            velocity_q16: 0,
+            acceleration_q16: 0,
+        };
+        let got: Vec<i64> = (0..5)
+            .map(|_| s.shape(&landed, 0, true, true, dt(), ONE).position)
+            .collect();
+        // The landing stored at the first tick is read at the fourth.
+        assert_eq!(got, [ONE / 2, ONE / 2, ONE / 2, ONE, ONE]);
     }
 
     #[test]
-    fn the_longest_delay_reads_the_oldest_sample() {
-        let d = SHAPER_LEN as u8 - 1;
-        let mut s = Shaper::start(d, 0);
-        for _ in 0..d {
-            assert_eq!(s.shape(ONE, 0, 0).0, ONE / 2);
-        }
-        assert_eq!(s.shape(ONE, 0, 0).0, ONE);
+    fn off_out_of_range_and_too_steep_profiles_stay_off() {
+        assert!(!Shaper::start(0, ONE, 0).on());
+        assert!(!Shaper::start(SHAPER_LEN as u8, ONE, 0).on());
+        assert!(!Shaper::start(5, ONE, MAX_CHANGE_Q16 + 1).on());
+        assert!(Shaper::start(SHAPER_LEN as u8 - 1, ONE, MAX_CHANGE_Q16).on());
     }
 }

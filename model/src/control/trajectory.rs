@@ -26,9 +26,10 @@ use fixed::types::I64F64;
 
 use super::dash::Dash;
 use super::error::ControlError;
+use super::gain::Gain;
 use super::gain::{q32_to_q16, sat_i32};
 use super::schedule::Schedule;
-use super::shaper::Shaper;
+use super::shaper::{Shaped, Shaper};
 use super::sine::{cos_q30, sin_q30};
 use crate::units::{Angle, Frequency};
 
@@ -103,6 +104,8 @@ enum Mode {
     Tail {
         target: i64,
         left: u8,
+        up: bool,
+        dt: Gain,
     },
 }
 
@@ -369,7 +372,7 @@ impl Trajectory {
                 self.raw = self.pos;
                 // From rest at a soft setting the reference goes through the shaper.
                 self.shaper = if self.vel == 0 && self.acc == 0 {
-                    Shaper::start(sched.shaper_ticks, self.pos)
+                    Shaper::start(sched.shaper_ticks, self.pos, d.max_change_q16())
                 } else {
                     Shaper::OFF
                 };
@@ -522,13 +525,22 @@ impl Trajectory {
                 let t = d.advance(self.raw, limited);
                 self.raw = t.position;
                 if self.shaper.on() {
-                    (self.pos, self.vel, self.acc) =
+                    let now = Shaped {
+                        position: t.position,
+                        velocity_q16: t.velocity_q16,
+                        acceleration_q16: t.acceleration_q16,
+                    };
+                    let r =
                         self.shaper
-                            .shape(t.position, t.velocity_q16, t.acceleration_q16);
+                            .shape(&now, t.change_q16, t.done, d.up(), d.dt(), d.target());
+                    (self.pos, self.vel, self.acc) =
+                        (r.position, r.velocity_q16, r.acceleration_q16);
                     if t.done {
                         self.mode = Mode::Tail {
                             target: t.position,
                             left: self.shaper.delay(),
+                            up: d.up(),
+                            dt: d.dt(),
                         };
                     }
                 } else {
@@ -540,7 +552,12 @@ impl Trajectory {
                     }
                 }
             }
-            Mode::Tail { target, left } => {
+            Mode::Tail {
+                target,
+                left,
+                up,
+                dt,
+            } => {
                 *left = left.saturating_sub(1);
                 if *left == 0 {
                     // The delayed half has landed too: exactly on the target.
@@ -549,7 +566,14 @@ impl Trajectory {
                     self.acc = 0;
                     self.mode = Mode::Hold;
                 } else {
-                    (self.pos, self.vel, self.acc) = self.shaper.shape(*target, 0, 0);
+                    let now = Shaped {
+                        position: *target,
+                        velocity_q16: 0,
+                        acceleration_q16: 0,
+                    };
+                    let r = self.shaper.shape(&now, 0, true, *up, *dt, *target);
+                    (self.pos, self.vel, self.acc) =
+                        (r.position, r.velocity_q16, r.acceleration_q16);
                 }
             }
         }
@@ -604,17 +628,11 @@ mod tests {
         for (k, got) in shaped.iter().enumerate().take(shaped.len() - 1).skip(1) {
             let now = at(k);
             let old = if k > delay { at(k - delay) } else { rest };
-            let mean = now.position.to_bits() / 2 + old.position.to_bits() / 2;
-            // The delayed half is stored to Q24: within 2⁸ LSB of the exact mean.
-            assert!(
-                (shaped[k].position.to_bits() - mean).abs() <= 1 << 8,
-                "tick {k}"
-            );
+            let half = |a: i64, b: i64| a.div_euclid(2) + b.div_euclid(2);
+            let mean = half(now.position.to_bits(), old.position.to_bits());
+            assert_eq!(got.position.to_bits(), mean, "tick {k}");
             let half = |a: i32, b: i32| a.div_euclid(2) + b.div_euclid(2);
-            assert_eq!(
-                shaped[k].velocity_q16,
-                half(now.velocity_q16, old.velocity_q16)
-            );
+            assert_eq!(got.velocity_q16, half(now.velocity_q16, old.velocity_q16));
             assert_eq!(
                 got.acceleration_q16,
                 half(now.acceleration_q16, old.acceleration_q16)
