@@ -169,8 +169,8 @@ pub struct Schedule {
     /// dt = 1 ms (rad/s → rad per tick, applied wide) and the complementary filter's
     /// pull 2·ω_o·dt per tick.
     pub(crate) dt: Gain,
-    /// A raw step's shaper delay Δ = π/ω_a, ticks, where the beams set the bandwidth;
-    /// 0 elsewhere ([`super::shaper`]).
+    /// A raw step's shaper delay Δ = π/ω_a, ticks, where the beams set the bandwidth and
+    /// Δ exceeds the motor's mechanical time constant; 0 elsewhere ([`super::shaper`]).
     pub(crate) shaper_ticks: u8,
     pub(crate) obs_beta: Gain,
     /// The bias integrator's gain ω_o²·dt (1/s per tick).

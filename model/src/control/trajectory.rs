@@ -15,6 +15,9 @@
 //! allowed); per tick the generator evaluates three Horner chains (12 multiplies of
 //! I32F32 values through a 64×64→128-bit product).
 //!
+//! A raw step runs the profile of [`super::dash`]; from rest at a soft setting its
+//! reference goes through the ZV shaper of [`super::shaper`] and ends Δ ticks later.
+//!
 //! The sine r = r_c + A·sin(ωt) (r_c the reference position when the command is given)
 //! uses a u32 phase accumulator (2³² per turn) and the integer sine of
 //! [`super::sine`]; ṙ = A·ω·cos(ωt), r̈ = −A·ω²·sin(ωt).
@@ -26,8 +29,7 @@ use fixed::types::I64F64;
 
 use super::dash::Dash;
 use super::error::ControlError;
-use super::gain::Gain;
-use super::gain::{q32_to_q16, sat_i32};
+use super::gain::{q32_to_q16, sat_i32, Gain};
 use super::schedule::Schedule;
 use super::shaper::{Shaped, Shaper};
 use super::sine::{cos_q30, sin_q30};
@@ -266,6 +268,14 @@ impl Trajectory {
         }
     }
 
+    /// Holds at `target` (I32F32 rad bits), still: the end of a move or a shaped step.
+    fn land(&mut self, target: i64) {
+        self.pos = target;
+        self.vel = 0;
+        self.acc = 0;
+        self.mode = Mode::Hold;
+    }
+
     /// `true` while a raw step runs (its shaper's tail included).
     #[must_use]
     pub const fn is_dash(&self) -> bool {
@@ -475,10 +485,8 @@ impl Trajectory {
             } => {
                 *left = left.saturating_sub(1);
                 if *left == 0 {
-                    self.pos = *target;
-                    self.vel = 0;
-                    self.acc = 0;
-                    self.mode = Mode::Hold;
+                    let target = *target;
+                    self.land(target);
                 } else {
                     *tau = tau.saturating_add(*dtau);
                     let t = *tau;
@@ -561,10 +569,8 @@ impl Trajectory {
                 *left = left.saturating_sub(1);
                 if *left == 0 {
                     // The delayed half has landed too: exactly on the target.
-                    self.pos = *target;
-                    self.vel = 0;
-                    self.acc = 0;
-                    self.mode = Mode::Hold;
+                    let target = *target;
+                    self.land(target);
                 } else {
                     let now = Shaped {
                         position: *target,
