@@ -16,7 +16,7 @@
 //! is the profile replayed: the shaper keeps the profile's change of speed along the step
 //! in each of its last `SHAPER_LEN` ticks (an `i16`, Q16 rad/s: the controller's state is
 //! copied whole while a board starts, and its stack has room for little more) and
-//! integrates them Δ ticks late with the profile's own rule ([`dash::travel`]), so the
+//! integrates them Δ ticks late with the profile's own rule (`dash::travel`), so the
 //! delayed half is the profile itself, bit for bit. Per tick: one change stored, one read,
 //! one travel, three halvings and adds.
 //!
