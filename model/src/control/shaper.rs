@@ -3,8 +3,10 @@
 //!
 //! Where the beams set the loop's bandwidth (ω_a = √(k/J_l) below `BW_RATIO`·`BW_MAX`,
 //! so ω_c = ω_a/5), the loop cannot damp the link ringing on the beams, and each torque
-//! step of the raw step's profile ([`super::dash`]) sets it ringing at about ω_a. The
-//! shaper splits every change of the profile into two halves π/ω_a apart,
+//! step of the raw step's profile ([`super::dash`]) sets it ringing at about ω_a. Where,
+//! too, half a ringing period is longer than the motor's mechanical time constant (a
+//! faster ringing the motor's own lag smooths out), the shaper splits every change of the
+//! profile into two halves π/ω_a apart (the delay: `Schedule`'s `shaper_ticks`),
 //!
 //! ```text
 //! r_s(t) = ½·r(t) + ½·r(t − Δ),   Δ = round(π/ω_a / dt) ticks   (the same for ṙ and r̈)
@@ -49,7 +51,8 @@ pub struct Shaper {
     changes: [i16; SHAPER_LEN],
 }
 
-/// The delayed half of the profile this tick, and the shaped reference.
+/// One tick of reference: position (I32F32 rad bits), ṙ and r̈ (Q16); the profile's, or
+/// the shaped one.
 pub(crate) struct Shaped {
     pub(crate) position: i64,
     pub(crate) velocity_q16: i32,
