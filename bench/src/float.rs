@@ -155,8 +155,10 @@ pub struct FloatSchedule {
     ff_sine_acc: f32,
     /// J_l/k, s² (c_ω = ω²·J_l/k).
     jl_over_k: f32,
-    /// The raw step's shaper delay π/ω_a, ticks, where the beams set the bandwidth; 0
-    /// elsewhere (`model::control::shaper`).
+    /// The raw step's shaper delay π/ω_a, ticks, where the beams set the bandwidth and it
+    /// exceeds the motor's time constant J·R/(k_t·k_e); 0 elsewhere
+    /// (`model::control::shaper`; the fixed-point one also leaves a profile whose speed
+    /// changes by 0.5 rad/s or more in a tick unshaped, which the f32 port need not).
     shaper_ticks: usize,
     ff_defl: f32,
     j_link: f32,

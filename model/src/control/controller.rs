@@ -1021,6 +1021,7 @@ mod tests {
     /// configuration's own figures; shaped where ω_a < 300 rad/s and π/ω_a > τ_m.
     #[test]
     fn raw_step_shaper_delay_is_half_the_link_ringing_period_where_the_motor_lags_less() {
+        use super::super::shaper::SHAPER_LEN;
         let d = Design::paper();
         // (L mm, J_l kg·mm², the branch expected: 0 stiff, 1 motor lag, 2 shaped, 3 clamped)
         for (l, j, branch) in [
@@ -1042,6 +1043,7 @@ mod tests {
                 * m.resistance_ohm.to_num::<f64>()
                 / (m.torque_constant.to_num::<f64>() * m.back_emf.to_num::<f64>());
             let half = core::f64::consts::PI / wa;
+            let longest = SHAPER_LEN as f64 - 1.0;
             let want = match branch {
                 0 => {
                     assert!(wa >= 300.0, "L = {l}: ω_a {wa}");
@@ -1055,12 +1057,12 @@ mod tests {
                     0
                 }
                 2 => {
-                    assert!(half > tau_m && half < 0.063, "L = {l}: {half} s");
-                    (half * 1000.0).round() as u8
+                    assert!(half > tau_m && half * 1e3 < longest, "L = {l}: {half} s");
+                    (half * 1e3).round() as u8
                 }
                 _ => {
-                    assert!(half > 0.063, "L = {l}: {half} s");
-                    63
+                    assert!(half * 1e3 > longest, "L = {l}: {half} s");
+                    longest as u8
                 }
             };
             assert_eq!(s.shaper_ticks, want, "L = {l} mm, J_l {j} kg·mm²");
