@@ -663,21 +663,22 @@ impl FloatTrajectory {
                     )
                 };
                 self.raw = p;
-                if self.shaper.delay > 0 {
-                    (self.pos, self.vel, self.acc) =
-                        self.shaper.shape((p, v, a), next - s, done, *sign, *target);
-                    if done {
-                        self.mode = Mode::Tail {
+                let shaped = self.shaper.delay > 0;
+                (self.pos, self.vel, self.acc) = if shaped {
+                    self.shaper.shape((p, v, a), next - s, done, *sign, *target)
+                } else {
+                    (p, v, a)
+                };
+                if done {
+                    self.mode = if shaped {
+                        Mode::Tail {
                             target: p,
                             left: self.shaper.delay,
                             sign: *sign,
-                        };
-                    }
-                } else {
-                    (self.pos, self.vel, self.acc) = (p, v, a);
-                    if done {
-                        self.mode = Mode::Hold;
-                    }
+                        }
+                    } else {
+                        Mode::Hold
+                    };
                 }
             }
             Mode::Tail { target, left, sign } => {

@@ -26,6 +26,8 @@
 
 use super::dash;
 use super::gain::Gain;
+use super::trajectory::Reference;
+use crate::units::Angle;
 
 /// Ticks of profile the shaper keeps: the longest delay is `SHAPER_LEN` − 1 ticks, a
 /// link ringing at 50 rad/s or faster (the acceptance range, docs/design.md §9, reaches
@@ -49,14 +51,6 @@ pub struct Shaper {
     speed: i32,
     /// Change of speed along the step in each stored tick, Q16 (`LANDED` at the landing).
     changes: [i16; SHAPER_LEN],
-}
-
-/// One tick of reference: position (I32F32 rad bits), ṙ and r̈ (Q16); the profile's, or
-/// the shaped one.
-pub(crate) struct Shaped {
-    pub(crate) position: i64,
-    pub(crate) velocity_q16: i32,
-    pub(crate) acceleration_q16: i32,
 }
 
 impl Shaper {
@@ -104,13 +98,13 @@ impl Shaper {
     #[inline]
     pub(crate) fn shape(
         &mut self,
-        now: &Shaped,
+        now: &Reference,
         change_q16: i32,
         landed: bool,
         up: bool,
         dt: Gain,
         target: i64,
-    ) -> Shaped {
+    ) -> Reference {
         let mask = SHAPER_LEN - 1;
         let head = (usize::from(self.head) + 1) & mask;
         self.head = head as u8;
@@ -138,8 +132,10 @@ impl Shaper {
                 (next.saturating_neg(), -a)
             }
         };
-        Shaped {
-            position: (now.position >> 1).saturating_add(self.position >> 1),
+        Reference {
+            position: Angle::from_bits(
+                (now.position.to_bits() >> 1).saturating_add(self.position >> 1),
+            ),
             velocity_q16: (now.velocity_q16 >> 1).saturating_add(velocity >> 1),
             acceleration_q16: (now.acceleration_q16 >> 1).saturating_add(acceleration >> 1),
         }
@@ -157,32 +153,25 @@ mod tests {
         Gain::new(fixed::types::I64F64::ONE / 1000).unwrap()
     }
 
+    /// A reference at `position` (I32F32 rad bits).
+    fn at(position: i64, velocity_q16: i32, acceleration_q16: i32) -> Reference {
+        Reference {
+            position: Angle::from_bits(position),
+            velocity_q16,
+            acceleration_q16,
+        }
+    }
+
     /// A made-up profile along +: speeds (Q16) tick by tick from rest, landing at the end.
-    fn profile(speeds: &[i32], origin: i64, target: i64) -> Vec<(Shaped, i32, bool)> {
+    fn profile(speeds: &[i32], origin: i64, target: i64) -> Vec<(Reference, i32, bool)> {
         let mut out = Vec::new();
         let (mut p, mut s) = (origin, 0);
         for &n in speeds {
             p += dash::travel(dt(), s, n);
-            out.push((
-                Shaped {
-                    position: p,
-                    velocity_q16: n,
-                    acceleration_q16: (n - s) * 1000,
-                },
-                n - s,
-                false,
-            ));
+            out.push((at(p, n, (n - s) * 1000), n - s, false));
             s = n;
         }
-        out.push((
-            Shaped {
-                position: target,
-                velocity_q16: 0,
-                acceleration_q16: 0,
-            },
-            0,
-            true,
-        ));
+        out.push((at(target, 0, 0), 0, true));
         out
     }
 
@@ -198,16 +187,16 @@ mod tests {
         let seq = profile(&speeds, origin, 4 * ONE);
         let delay = 4;
         let mut s = Shaper::start(delay as u8, origin, 6000);
-        let rest = Shaped {
-            position: origin,
-            velocity_q16: 0,
-            acceleration_q16: 0,
-        };
+        let rest = at(origin, 0, 0);
         for (k, (now, change, landed)) in seq.iter().enumerate() {
             let old = if k >= delay { &seq[k - delay].0 } else { &rest };
             let got = s.shape(now, *change, *landed, true, dt(), 4 * ONE);
             let half = |a: i64, b: i64| a.div_euclid(2) + b.div_euclid(2);
-            assert_eq!(got.position, half(now.position, old.position), "tick {k}");
+            assert_eq!(
+                got.position.to_bits(),
+                half(now.position.to_bits(), old.position.to_bits()),
+                "tick {k}"
+            );
             assert_eq!(
                 i64::from(got.velocity_q16),
                 half(now.velocity_q16.into(), old.velocity_q16.into()),
@@ -224,13 +213,13 @@ mod tests {
     #[test]
     fn a_landing_shows_in_the_delayed_half_delay_ticks_later() {
         let mut s = Shaper::start(3, 0, 100);
-        let landed = Shaped {
-            position: ONE,
-            velocity_q16: 0,
-            acceleration_q16: 0,
-        };
+        let landed = at(ONE, 0, 0);
         let got: Vec<i64> = (0..5)
-            .map(|_| s.shape(&landed, 0, true, true, dt(), ONE).position)
+            .map(|_| {
+                s.shape(&landed, 0, true, true, dt(), ONE)
+                    .position
+                    .to_bits()
+            })
             .collect();
         // The landing stored at the first tick is read at the fourth.
         assert_eq!(got, [ONE / 2, ONE / 2, ONE / 2, ONE, ONE]);

@@ -31,7 +31,7 @@ use super::dash::Dash;
 use super::error::ControlError;
 use super::gain::{q32_to_q16, sat_i32, Gain};
 use super::schedule::Schedule;
-use super::shaper::{Shaped, Shaper};
+use super::shaper::Shaper;
 use super::sine::{cos_q30, sin_q30};
 use crate::units::{Angle, Frequency};
 
@@ -533,8 +533,8 @@ impl Trajectory {
                 let t = d.advance(self.raw, limited);
                 self.raw = t.position;
                 if self.shaper.on() {
-                    let now = Shaped {
-                        position: t.position,
+                    let now = Reference {
+                        position: Angle::from_bits(t.position),
                         velocity_q16: t.velocity_q16,
                         acceleration_q16: t.acceleration_q16,
                     };
@@ -542,7 +542,7 @@ impl Trajectory {
                         self.shaper
                             .shape(&now, t.change_q16, t.done, d.up(), d.dt(), d.target());
                     (self.pos, self.vel, self.acc) =
-                        (r.position, r.velocity_q16, r.acceleration_q16);
+                        (r.position.to_bits(), r.velocity_q16, r.acceleration_q16);
                     if t.done {
                         self.mode = Mode::Tail {
                             target: t.position,
@@ -572,14 +572,14 @@ impl Trajectory {
                     let target = *target;
                     self.land(target);
                 } else {
-                    let now = Shaped {
-                        position: *target,
+                    let now = Reference {
+                        position: Angle::from_bits(*target),
                         velocity_q16: 0,
                         acceleration_q16: 0,
                     };
                     let r = self.shaper.shape(&now, 0, true, *up, *dt, *target);
                     (self.pos, self.vel, self.acc) =
-                        (r.position, r.velocity_q16, r.acceleration_q16);
+                        (r.position.to_bits(), r.velocity_q16, r.acceleration_q16);
                 }
             }
         }
