@@ -106,9 +106,14 @@ fn wrong_clutch_grid(monitor: bool) -> Vec<String> {
     let mut over: Vec<String> = vec![];
     let mut false_trips: Vec<String> = vec![];
     let mut missed: Vec<String> = vec![];
-    for l in 1..=5 {
+    // Every whole clutch length of the paper's beams, and the beams no longer than they are.
+    let beam_mm = host_tests::oracle::Design::paper().l * 1e3;
+    for l in 1..=8 {
         for delta_um in [0, 250, 500, 1000] {
             let actual_mm = f64::from(l) + f64::from(delta_um) * 1e-3;
+            if actual_mm > beam_mm + 1e-9 {
+                continue;
+            }
             for (name, cmd, load) in [
                 ("0.5 rad in 60 ms", sim::min_jerk("0.5", 60), -0.3f32),
                 ("raw step 1 rad", sim::raw_step("1"), -0.3),
@@ -207,5 +212,62 @@ fn the_monitor_catches_a_longer_clutch_where_resolvable() {
     for name in MOTIONS {
         let label = format!("L 5 mm, actual 6 mm, {name}");
         assert!(caught.contains(&label), "{label}: not caught");
+    }
+}
+
+/// The monitor alone, fed the deflection of beams `softer` times as compliant as the
+/// f64 oracle's at the configured length (paper eq. 4) under a slow sine of motor torque whose RMS deflects the beams 1.8 pot counts (the monitor's evidence
+/// is one): its estimate relative to the configured compliance, and whether it latched a
+/// mismatch.
+fn monitor_on_beams(l_mm: i32, softer: f64) -> (f64, bool) {
+    use model::clutch_monitor::{ClutchLimits, ClutchMonitor};
+    use model::control::{Config, Output};
+    let mut config = Config::paper(Length::from_int(l_mm));
+    config.limits.clutch_tolerance = length_from_um(UNCONFIRMED_TOLERANCE_UM);
+    let servo = Servo::new(
+        &model::Design::paper(),
+        &config,
+        &model::supervisor::SupervisorConfig::DEFAULT,
+    )
+    .unwrap();
+    let sched = servo.controller().schedule();
+    let lim = ClutchLimits::new(sched);
+    let free_play = sched.free_play().to_bits() as f64 / 2f64.powi(32);
+    let k = host_tests::oracle::Design::paper().stiffness(f64::from(l_mm) * 1e-3);
+    let pot_count = (f64::from(model::sensors::POT_SPAN_DEG)
+        / f64::from(model::sensors::POT_COUNTS))
+    .to_radians();
+    let amplitude = 2.5 * k * pot_count;
+    let mut monitor = ClutchMonitor::new();
+    let mut latched = false;
+    for tick in 0..2000 {
+        let tau = amplitude * (f64::from(tick) * std::f64::consts::TAU / 400.0).sin();
+        let phi = softer * tau / k + free_play * tau.signum();
+        let out = Output {
+            motor_torque_q16: (tau * 65536.0) as i32,
+            ..Output::default()
+        };
+        latched |= monitor.update((phi * 2f64.powi(32)) as i64, &out, &lim);
+    }
+    let ratio = monitor.ratio_q16(&lim).map_or(0.0, |r| r as f64 / 65536.0);
+    (ratio, latched)
+}
+
+#[test]
+fn the_monitor_measures_the_configured_compliance_at_every_clutch_length() {
+    // Beams as configured: the estimate within 3 % of 1, no mismatch; beams 1.6× as
+    // compliant (a clutch 17 % longer): a mismatch. At 7 and 8 mm (k = 20.9 and
+    // 14.0 N·m/rad) the configured compliance once saturated at 1/32 N·m/rad and the
+    // right beams read 1.53× and 2.27× soft. From 3 mm: below, a pot count of
+    // deflection takes more than the regression's 4 N·m bound (the monitor undecided).
+    for l in 3..=8 {
+        let (ratio, latched) = monitor_on_beams(l, 1.0);
+        println!("L {l} mm, configured beams: estimate {ratio:.4}×, mismatch {latched}");
+        assert!((ratio - 1.0).abs() < 0.03, "L {l} mm: {ratio}");
+        assert!(!latched, "L {l} mm: false mismatch");
+        let (ratio, latched) = monitor_on_beams(l, 1.6);
+        println!("L {l} mm, beams 1.6× as compliant: estimate {ratio:.4}×, mismatch {latched}");
+        assert!((ratio - 1.6).abs() < 0.05, "L {l} mm: {ratio}");
+        assert!(latched, "L {l} mm: softer beams not flagged");
     }
 }

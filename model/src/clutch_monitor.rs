@@ -4,9 +4,10 @@
 //! the supervisor:
 //!
 //! * an online estimate of the joint compliance 1/k from the measured deflection
-//!   φ (pot − encoder, beyond the free play on the torque's side) and the motor torque
-//!   τ = k_t·i − J_g·Δω_g/dt: least squares of φ on τ with exponential forgetting
-//!   (recursive least squares of one parameter, forgetting factor λ = 1 − 2⁻⁸, a time
+//!   φ (pot − encoder, beyond the free play on the torque's side) and the motor-side
+//!   torque τ = k_t·i − J_g·ω̇_g − b_v·ω_g (the controller's `Output::motor_torque_q16`,
+//!   ω̇_g through its derivative filter): least squares of φ on τ with exponential
+//!   forgetting (recursive least squares of one parameter, forgetting factor λ = 1 − 2⁻⁸, a time
 //!   constant of 256 ticks), kept as the two weighted sums Σλⁿτφ and Σλⁿτ² so that the
 //!   per-tick work is multiplies and shifts, no division. Regressing φ on τ (not τ on φ)
 //!   leaves the pot's coarse quantisation in the residual instead of biasing the slope.
@@ -29,7 +30,7 @@
 //! settings only (L ≳ 4 mm on the paper's beams, docs/calibration.md); elsewhere the
 //! monitor stays undecided and the weak capacity stays in force.
 
-use crate::control::{Gain, Output, Schedule};
+use crate::control::{Output, Schedule};
 use crate::sensors::POT_COUNT_Q32;
 
 /// Compliance ratio (estimated / configured) above which the clutch is declared longer
@@ -43,13 +44,18 @@ const FORGET: u32 = 8;
 const SMOOTH: u32 = 4;
 /// Bounds of the regression's samples: |τ| ≤ 4 N·m (Q12: 2¹⁴), |φ_e| ≤ 0.125 rad (Q16:
 /// 2¹³). With them |τ·φ| < 2²⁷ and τ² ≤ 2²⁸ fit an i32, the sums stay below 2³⁶
-/// (2⁸ samples' worth), s_tp·2²⁴ below 2⁶⁰ and a threshold (< 2²³) times s_tt below 2⁵⁹:
-/// plain i64 arithmetic, no overflow (the clamps make the bounds hold).
+/// (2⁸ samples' worth), s_tp·2²⁴ below 2⁶⁰ and a threshold (≤ 1.25 × [`COMPLIANCE_MAX_28`])
+/// times s_tt below 1.25·2⁶²: plain i64 arithmetic, no overflow (the clamps make the
+/// bounds hold).
 const TAU_MAX_Q12: i32 = 1 << 14;
 const PHI_MAX_Q16: i32 = 1 << 13;
 /// Consecutive ticks the estimate must stay beyond the mismatch ratio (a violent
 /// transient, e.g. a raw step's impacts, is not evidence).
 const MISMATCH_TICKS: u16 = 64;
+/// The largest configured compliance the decisions' i64 products hold (above), rad per
+/// N·m × 2²⁸: 2²⁶, k ≥ 4 N·m/rad (the paper's beams at 8 mm: 14 N·m/rad). Softer beams
+/// leave the monitor undecided (the weak capacity stays in force).
+pub const COMPLIANCE_MAX_28: i64 = 1 << 26;
 
 /// What the monitor concluded so far.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -67,7 +73,7 @@ pub enum ClutchState {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ClutchLimits {
     /// Configured compliance 1/k, rad per N·m × 2²⁸ (the regression's φ Q16 over τ Q12,
-    /// × 2²⁴), at most 2²³ (k ≥ 32 N·m/rad).
+    /// × 2²⁴), at most [`COMPLIANCE_MAX_28`].
     compliance_28: i64,
     /// `MISMATCH_RATIO` and `CONFIRM_RATIO` × `compliance_28`.
     mismatch_28: i64,
@@ -83,9 +89,6 @@ pub struct ClutchLimits {
     /// Capacity while undecided and once confirmed, I32F32 N·m.
     cap_weak: i64,
     cap_confirmed: i64,
-    /// The controller's k_t (N·m per A) and J_g/dt (N·m per rad/s per tick).
-    kt: Gain,
-    jg_dt: Gain,
 }
 
 impl ClutchLimits {
@@ -104,10 +107,17 @@ impl ClutchLimits {
         };
         // k is I64F64 N·m/rad: 1/k × 2²⁸ = 2⁹²/k_bits.
         let k_bits = sched.stiffness().to_bits().max(1);
-        let compliance_28 = ((1i128 << 92) / k_bits).clamp(1, 1 << 23) as i64;
-        // τ_ev (Q12) = one pot count / c = POT_COUNT_Q32·2⁸ / c₂₈; evidence τ_ev²·2^FORGET.
+        let exact_28 = (1i128 << 92) / k_bits;
+        let compliance_28 = exact_28.clamp(1, i128::from(COMPLIANCE_MAX_28)) as i64;
+        // τ_ev (Q12) = one pot count / c = POT_COUNT_Q32·2⁸ / c₂₈; evidence τ_ev²·2^FORGET
+        // (more than the sums can reach where the compliance is beyond the bound: the
+        // clamped one would read those beams as soft).
         let tau_ev = (i128::from(POT_COUNT_Q32) << 8) / i128::from(compliance_28);
-        let evidence = (tau_ev * tau_ev * (1 << FORGET)).min(1 << 40) as i64;
+        let evidence = if exact_28 > i128::from(COMPLIANCE_MAX_28) {
+            i64::MAX
+        } else {
+            (tau_ev * tau_ev * (1 << FORGET)).min(1 << 40) as i64
+        };
         ClutchLimits {
             compliance_28,
             mismatch_28: (compliance_28 * MISMATCH_RATIO) >> 16,
@@ -119,8 +129,6 @@ impl ClutchLimits {
             // τ_cap(L) itself without a tolerance.
             cap_weak: sched.weak_capacity().to_bits(),
             cap_confirmed,
-            kt: sched.kt,
-            jg_dt: sched.gear_inertia_per_dt,
         }
     }
 }
@@ -131,7 +139,6 @@ pub struct ClutchMonitor {
     state: ClutchState,
     phi_f: i32,
     tau_f: i32,
-    w_prev: i32,
     /// Σλⁿτ² (N·m² Q24) and Σλⁿτφ (N·m·rad Q28).
     s_tt: i64,
     s_tp: i64,
@@ -139,6 +146,9 @@ pub struct ClutchMonitor {
     s_ta: i64,
     /// Consecutive ticks beyond the mismatch ratio.
     beyond: u16,
+    /// The estimate when the mismatch was found, ‰ of the configured compliance (the
+    /// fault's value, computed once).
+    mismatch_permille: i32,
 }
 
 impl Default for ClutchMonitor {
@@ -155,11 +165,11 @@ impl ClutchMonitor {
             state: ClutchState::Unknown,
             phi_f: 0,
             tau_f: 0,
-            w_prev: 0,
             s_tt: 0,
             s_tp: 0,
             s_ta: 0,
             beyond: 0,
+            mismatch_permille: 0,
         }
     }
 
@@ -179,6 +189,24 @@ impl ClutchMonitor {
         })
     }
 
+    /// The estimate when the mismatch was found, ‰ of the configured compliance (0 before).
+    #[must_use]
+    pub const fn mismatch_permille(&self) -> i32 {
+        self.mismatch_permille
+    }
+
+    /// The estimate relative to the configured compliance, ‰: two i64 divisions, for the
+    /// one tick a mismatch is found (`ratio_q16` divides in i128).
+    fn permille(&self, lim: &ClutchLimits) -> i32 {
+        // s_tp·2²⁴ < 2⁶⁰ (the bounds at `TAU_MAX_Q12`); the estimate c·2²⁸.
+        let est_28 = (self.s_tp << 24).checked_div(self.s_tt).unwrap_or(0);
+        let permille = est_28
+            .saturating_mul(1000)
+            .checked_div(lim.compliance_28)
+            .unwrap_or(0);
+        permille.clamp(0, i64::from(i32::MAX)) as i32
+    }
+
     /// The capacity (I32F32 N·m) the overload check uses now.
     #[must_use]
     pub const fn capacity(&self, lim: &ClutchLimits) -> i64 {
@@ -189,18 +217,15 @@ impl ClutchMonitor {
     }
 
     /// One tick: `phi_q32` the measured deflection θ_g − θ_l (rad, I32F32), `out` the
-    /// controller's output (current, gear velocity). Returns true while the mismatch
-    /// holds (from the tick it is found until the monitor is reset).
+    /// controller's output (its motor-side torque). Returns true while the mismatch holds
+    /// (from the tick it is found until the monitor is reset).
+    #[inline(always)]
     pub fn update(&mut self, phi_q32: i64, out: &Output, lim: &ClutchLimits) -> bool {
         if self.state == ClutchState::Mismatch {
             // A condition: it holds until the monitor is reset (a new configuration).
             return true;
         }
-        let i_q16 = (out.current.to_bits() >> 16) as i32;
-        let w_q16 = (out.gear_velocity.to_bits() >> 16) as i32;
-        let dw = w_q16.wrapping_sub(self.w_prev);
-        self.w_prev = w_q16;
-        let tau = lim.kt.apply(i_q16).saturating_sub(lim.jg_dt.apply(dw));
+        let tau = out.motor_torque_q16;
         let phi = (phi_q32 >> 16).clamp(-(1 << 20), 1 << 20) as i32;
         self.tau_f = self
             .tau_f
@@ -236,6 +261,7 @@ impl ClutchMonitor {
             self.beyond = self.beyond.saturating_add(1);
             if self.beyond >= MISMATCH_TICKS {
                 self.state = ClutchState::Mismatch;
+                self.mismatch_permille = self.permille(lim);
                 return true;
             }
             return false;

@@ -619,8 +619,7 @@ impl Supervisor {
             // The fields, not `monitor_limits`: the monitor itself is borrowed mutably.
             let mismatch = match monitor_running(&self.clutch_lim, &self.cfg) {
                 Some(lim) if self.clutch.update(phi, out, lim) => {
-                    let r = self.clutch.ratio_q16(lim).unwrap_or(0);
-                    Some(((r * 1000) >> 16).clamp(0, i64::from(i32::MAX)) as i32)
+                    Some(self.clutch.mismatch_permille())
                 }
                 _ => None,
             };

@@ -16,7 +16,7 @@
 //!
 //! # What is timed, over which inputs
 //!
-//! For each clutch length L = 1 … 5 mm, the servo (paper preset, default supervisor, the
+//! For each whole clutch length of the paper's beams, L = 1 … 8 mm, the servo (paper preset, default supervisor, the
 //! clutch tolerance a board takes until a calibration confirms the clutch, so the clutch
 //! monitor runs) runs 2000 ticks in closed loop with the simulated actuator (`plant`, 0.3 N·m load, as
 //! in the step sweep; the plant is not timed): hold, a 0.5 rad raw step, a 200 ms
@@ -204,9 +204,9 @@ mod suite {
         // The script with the load, then without: a link floating in the free play at rest,
         // where the catch (`model::control::catch`) has the output. The same code times
         // both (one call site, one inlining); the other figures are the loaded pass's.
-        for (mm, load_nm) in (1..=5)
+        for (mm, load_nm) in (1..=8)
             .map(|mm| (mm, 0.3))
-            .chain((1..=5).map(|mm| (mm, 0.0)))
+            .chain((1..=8).map(|mm| (mm, 0.0)))
         {
             let loaded = load_nm > 0.0;
             // As a board runs until a calibration confirms the clutch: the clutch taken

@@ -80,6 +80,10 @@ pub struct Output {
     pub flags: Flags,
     /// Estimated coupling torque on the link, N·m (resolution 1.5e-5 N·m).
     pub torque_estimate: Torque,
+    /// The same from the motor side alone, k_t·i − J_g·ω̇_g − b_v·ω_g through the derivative
+    /// filter (the pot not used), N·m Q16 (saturated to ±32 768 N·m): what the clutch
+    /// monitor regresses the deflection on.
+    pub motor_torque_q16: i32,
     /// Link-angle reference r of this tick, rad.
     pub reference: Angle,
     /// Measured link angle (centre of the encoder count), rad, unwrapped.
@@ -133,6 +137,8 @@ pub struct Controller {
     w_gear_prev: i32,
     /// Motor current through the derivative filter (torque estimate), A Q16.
     i_filtered: i32,
+    /// This tick's current-based coupling torque (the output's `motor_torque_q16`), N·m Q16.
+    tau_motor: i32,
     /// Integrator, duty ‰ in Q32 (I32F32 bits).
     integ: i64,
     /// Hunting at rest (large duty reversals in quick succession).
@@ -189,6 +195,7 @@ impl Controller {
             w_ref: 0,
             w_gear_prev: 0,
             i_filtered: 0,
+            tau_motor: 0,
             integ: 0,
             hunt: Hunt::NEW,
             creep: Creep::NEW,
@@ -343,6 +350,7 @@ impl Controller {
         self.w_ref = 0;
         self.w_gear_prev = 0;
         self.i_filtered = 0;
+        self.tau_motor = 0;
         self.integ = 0;
         self.hunt = Hunt::NEW;
         self.creep = Creep::NEW;
@@ -442,6 +450,7 @@ impl Controller {
             s.kt.apply(self.i_filtered)
                 .saturating_sub(gear_inertial)
                 .saturating_sub(s.bv.apply(w_gear));
+        self.tau_motor = tau_i;
         let tau = match m.gear_pot {
             Some(pot) if s.w_defl_q16 != 0 => {
                 let pot = i32::from(pot) & (i32::from(POT_COUNTS) - 1);
@@ -823,6 +832,7 @@ impl Controller {
             duty,
             flags: c.flags,
             torque_estimate: Torque::from_bits(q16_to_q32(tau)),
+            motor_torque_q16: self.tau_motor,
             reference,
             link_angle: Angle::from_bits(theta_l),
             gear_velocity: I32F32::from_bits(q16_to_q32(w_gear)),

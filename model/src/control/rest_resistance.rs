@@ -193,6 +193,7 @@ mod tests {
             gear_velocity: I32F32::ZERO,
             link_velocity: I32F32::ZERO,
             current: I32F32::from_num(current_a),
+            motor_torque_q16: 0,
         }
     }
 
