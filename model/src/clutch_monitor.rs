@@ -7,9 +7,9 @@
 //!   φ (pot − encoder, beyond the free play on the torque's side) and the motor-side
 //!   torque τ = k_t·i − J_g·ω̇_g − b_v·ω_g (the controller's `Output::motor_torque_q16`,
 //!   ω̇_g through its derivative filter): least squares of φ on τ with exponential
-//!   forgetting (recursive least squares of one parameter, forgetting factor λ = 1 − 2⁻⁸, a time
-//!   constant of 256 ticks), kept as the two weighted sums Σλⁿτφ and Σλⁿτ² so that the
-//!   per-tick work is multiplies and shifts, no division. Regressing φ on τ (not τ on φ)
+//!   forgetting (recursive least squares of one parameter, forgetting factor
+//!   λ = 1 − 2⁻⁸, a time constant of 256 ticks), kept as the two weighted sums Σλⁿτφ and
+//!   Σλⁿτ² so that the per-tick work is multiplies and shifts, no division. Regressing φ on τ (not τ on φ)
 //!   leaves the pot's coarse quantisation in the residual instead of biasing the slope.
 //! * the capacity the overload check uses: until the estimate confirms the configured
 //!   stiffness, the weakest one the clutch tolerance allows, τ_cap(L)·L/(L + ΔL);
