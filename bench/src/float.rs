@@ -806,8 +806,6 @@ pub struct FloatController {
     w_ref: f32,
     w_gear_prev: f32,
     i_filtered: f32,
-    /// The last tick's current-based torque (the impact limit's contact for two ticks).
-    tau_motor: f32,
     integ: f32,
     hunt: Hunt,
     creep: Creep,
@@ -894,7 +892,6 @@ impl FloatController {
             w_ref: 0.0,
             w_gear_prev: 0.0,
             i_filtered: 0.0,
-            tau_motor: 0.0,
             integ: 0.0,
             hunt: Hunt::NEW,
             creep: Creep::NEW,
@@ -967,7 +964,6 @@ impl FloatController {
         self.w_ref = 0.0;
         self.w_gear_prev = 0.0;
         self.i_filtered = 0.0;
-        self.tau_motor = 0.0;
         self.integ = 0.0;
         self.hunt = Hunt::NEW;
         self.creep = Creep::NEW;
@@ -1026,8 +1022,6 @@ impl FloatController {
         self.w_gear_prev = self.w_fb;
         let gear_inertial = s.jg_fs * dw;
         let tau_i = s.kt * self.i_filtered - gear_inertial - s.bv * w_gear;
-        let tau_prev = self.tau_motor;
-        self.tau_motor = tau_i;
         let tau = match m.gear_pot {
             Some(pot) if s.w_defl != 0.0 => {
                 let pot = i32::from(pot) & (POT_COUNTS - 1);
@@ -1200,10 +1194,10 @@ impl FloatController {
         let emf_link = s.duty_per_w * self.w_link;
         let matched =
             (emf_link - (emf_link - emf) / (1u32 << IMPACT_MATCH_SHIFT) as f32).clamp(lo, hi);
-        if tau.min(tau_prev) <= contact_bound && closing > s.impact_speed {
+        if tau <= contact_bound && closing > s.impact_speed {
             hi = hi.min(matched);
         }
-        if tau.max(tau_prev) >= -contact_bound && closing < -s.impact_speed {
+        if tau >= -contact_bound && closing < -s.impact_speed {
             lo = lo.max(matched);
         }
         let mut u = u;

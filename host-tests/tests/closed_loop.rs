@@ -390,49 +390,6 @@ fn raw_steps_of_a_heavier_link_brake_in_time_for_the_beams() {
     ]);
 }
 
-/// Raw steps of off-nominal actuators whose link, run ahead of the gear, met the braking
-/// wall: the torque estimate, through the derivative filter, showed the contact a few
-/// ticks late, and the tick it passed the contact bound the free-play impact limit stood
-/// aside while the gear braked on into the wall. The limit now asks for contact at this
-/// tick and the one before (design §11, "Free-play impacts", "Contact for two ticks"):
-/// 1.017, 1.033 and 1.005 σ_allow before, 0.87–0.89 after. The off-nominal grid's seeds
-/// 1000126 #111, 1000223 #103 and 1000217 #232, their draws written out.
-#[test]
-fn the_gear_closes_on_the_link_after_two_ticks_of_contact() {
-    assert_within_the_beams(&[
-        grid::Case::written(
-            3875,
-            1.772_082_962_513_727e-3,
-            -0.124_518_66,
-            grid::Motion::Step(-0.460_286_956_892_823_56),
-            "resistance=x0.94461805,torque-constant=x1.027782,back-emf=x0.9102926,\
-             gear-inertia=x1.2321717,gear-friction=x2.427338,supply=10.663331V,\
-             current-offset=5.0361943,current-gain=1.0270199,pot-offset=-1.7661319,\
-             link-inertia=x1.7858171",
-        ),
-        grid::Case::written(
-            2548,
-            3.258_632_413_956_736_5e-3,
-            -0.051_070_54,
-            grid::Motion::Step(-0.265_007_754_585_282_7),
-            "resistance=x1.0013863,torque-constant=x0.9390136,back-emf=x1.0763624,\
-             gear-inertia=x1.0930067,gear-friction=x1.2440215,supply=12.144893V,\
-             current-offset=5.749322,current-gain=0.9708428,pot-offset=-1.6985047,\
-             link-inertia=x2.0243723",
-        ),
-        grid::Case::written(
-            2794,
-            2.570_862_690_303_186e-3,
-            0.195_047_24,
-            grid::Motion::Step(-0.396_873_182_265_903_96),
-            "resistance=x0.87580854,torque-constant=x1.0524601,back-emf=x1.0104975,\
-             gear-inertia=x1.2105421,gear-friction=x1.7286636,supply=12.38135V,\
-             current-offset=-3.9997318,current-gain=1.0057994,pot-offset=0.2936379,\
-             link-inertia=x0.60208726",
-        ),
-    ]);
-}
-
 #[test]
 fn step_without_gear_pot() {
     for l in [1, 3, 5] {

@@ -450,8 +450,6 @@ impl Controller {
             s.kt.apply(self.i_filtered)
                 .saturating_sub(gear_inertial)
                 .saturating_sub(s.bv.apply(w_gear));
-        // The last tick's, for the free-play impact limit's test of contact (`Window::new`).
-        let tau_prev = self.tau_motor;
         self.tau_motor = tau_i;
         let tau = match m.gear_pot {
             Some(pot) if s.w_defl_q16 != 0 => {
@@ -712,7 +710,7 @@ impl Controller {
             );
 
         // --- limits: current window about the back-EMF, duty limit ---
-        let win = Window::new(s, w_gear, self.w_link, current, tau, tau_prev);
+        let win = Window::new(s, w_gear, self.w_link, current, tau);
         // Braking governor (raw steps and other jumps of a stationary reference): when
         // the gear approaches the target faster than the available deceleration a_b can
         // stop it, ω_g² > 2·a_b·|e|, brake at the limit now instead of when the linear
@@ -807,7 +805,7 @@ impl Controller {
         reference: Angle,
         theta_l: i64,
     ) -> Output {
-        let win = Window::new(&self.sched, w_gear, self.w_link, current, tau, tau);
+        let win = Window::new(&self.sched, w_gear, self.w_link, current, tau);
         let c = win.clamp(&self.sched, u, tau);
         self.finish(&c, true, tau, reference, theta_l, w_gear, current)
     }
@@ -855,17 +853,9 @@ struct Window {
 
 impl Window {
     /// The window for the gear speed `w_gear`, the link speed `w_link` (rad/s Q16), the
-    /// current (A Q16), the torque estimate `tau` and the last tick's motor-side torque
-    /// `tau_prev` (N·m Q16).
+    /// current (A Q16) and the torque estimate `tau` (N·m Q16).
     #[inline(always)]
-    fn new(
-        s: &Schedule,
-        w_gear: i32,
-        w_link: i32,
-        current: i32,
-        tau: i32,
-        tau_prev: i32,
-    ) -> Window {
+    fn new(s: &Schedule, w_gear: i32, w_link: i32, current: i32, tau: i32) -> Window {
         let emf = s.duty_per_w.apply(w_gear);
         let di = s.i_win_duty_q16;
         let dl = s.duty_lim_q16;
@@ -882,12 +872,10 @@ impl Window {
         // the duty goes no further that way than the back-EMF of a speed three quarters of
         // the way from the gear's to the link's (the observer lags a duty step: at the
         // gear's own the gear kept braking into a link thrown ahead). Only where the
-        // beams carry torque now and carried it the tick before, on the side of τ̂, may the
-        // gear close on the link: a bouncing link leaves the wall it was pushed by, and the
-        // gear's next push would hit it; and τ̂, through the derivative filter, shows a fast
-        // contact late and a reversed duty's current as torque for a tick. The bound
-        // carries the current-based estimate's error, which grows with |i| (design §11,
-        // "Free-play impacts", "Contact for two ticks").
+        // beams carry torque now, on the side of τ̂, may the gear close on the link: a
+        // bouncing link leaves the wall it was pushed by, and the gear's next push would hit
+        // it. The bound carries the current-based estimate's error, which grows with |i|
+        // (design §11, "Free-play impacts").
         let closing = w_gear.saturating_sub(w_link);
         if closing.saturating_abs() > s.impact_speed_q16 {
             let contact_bound = s
@@ -897,9 +885,9 @@ impl Window {
             let matched = emf_link
                 .saturating_sub(emf_link.saturating_sub(emf) >> IMPACT_MATCH_SHIFT)
                 .clamp(lo, hi);
-            if closing > 0 && tau.min(tau_prev) <= contact_bound {
+            if closing > 0 && tau <= contact_bound {
                 hi = hi.min(matched);
-            } else if closing < 0 && tau.max(tau_prev) >= -contact_bound {
+            } else if closing < 0 && tau >= -contact_bound {
                 lo = lo.max(matched);
             }
         }
