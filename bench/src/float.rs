@@ -806,6 +806,8 @@ pub struct FloatController {
     w_ref: f32,
     w_gear_prev: f32,
     i_filtered: f32,
+    /// The side the impact limit held the duty on at the last tick (+1, −1, 0).
+    impact_side: i8,
     integ: f32,
     hunt: Hunt,
     creep: Creep,
@@ -892,6 +894,7 @@ impl FloatController {
             w_ref: 0.0,
             w_gear_prev: 0.0,
             i_filtered: 0.0,
+            impact_side: 0,
             integ: 0.0,
             hunt: Hunt::NEW,
             creep: Creep::NEW,
@@ -964,6 +967,7 @@ impl FloatController {
         self.w_ref = 0.0;
         self.w_gear_prev = 0.0;
         self.i_filtered = 0.0;
+        self.impact_side = 0;
         self.integ = 0.0;
         self.hunt = Hunt::NEW;
         self.creep = Creep::NEW;
@@ -1194,11 +1198,16 @@ impl FloatController {
         let emf_link = s.duty_per_w * self.w_link;
         let matched =
             (emf_link - (emf_link - emf) / (1u32 << IMPACT_MATCH_SHIFT) as f32).clamp(lo, hi);
-        if tau <= contact_bound && closing > s.impact_speed {
+        // Held on a side, the limit stays there while the gear closes that fast.
+        let held = self.impact_side;
+        self.impact_side = 0;
+        if (tau <= contact_bound || held > 0) && closing > s.impact_speed {
             hi = hi.min(matched);
+            self.impact_side = 1;
         }
-        if tau >= -contact_bound && closing < -s.impact_speed {
+        if (tau >= -contact_bound || held < 0) && closing < -s.impact_speed {
             lo = lo.max(matched);
+            self.impact_side = -1;
         }
         let mut u = u;
         if r.velocity == 0.0

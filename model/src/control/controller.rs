@@ -137,6 +137,10 @@ pub struct Controller {
     w_gear_prev: i32,
     /// Motor current through the derivative filter (torque estimate), A Q16.
     i_filtered: i32,
+    /// The side the free-play impact limit held the duty on at the last tick (+1 from
+    /// above, −1 from below, 0 none): it holds until the closing speed is back under the
+    /// impact speed (`Window::new`).
+    impact_side: i8,
     /// This tick's current-based coupling torque (the output's `motor_torque_q16`), N·m Q16.
     tau_motor: i32,
     /// Integrator, duty ‰ in Q32 (I32F32 bits).
@@ -196,6 +200,7 @@ impl Controller {
             w_gear_prev: 0,
             i_filtered: 0,
             tau_motor: 0,
+            impact_side: 0,
             integ: 0,
             hunt: Hunt::NEW,
             creep: Creep::NEW,
@@ -351,6 +356,7 @@ impl Controller {
         self.w_gear_prev = 0;
         self.i_filtered = 0;
         self.tau_motor = 0;
+        self.impact_side = 0;
         self.integ = 0;
         self.hunt = Hunt::NEW;
         self.creep = Creep::NEW;
@@ -710,7 +716,8 @@ impl Controller {
             );
 
         // --- limits: current window about the back-EMF, duty limit ---
-        let win = Window::new(s, w_gear, self.w_link, current, tau);
+        let win = Window::new(s, w_gear, self.w_link, current, tau, self.impact_side);
+        self.impact_side = win.side;
         // Braking governor (raw steps and other jumps of a stationary reference): when
         // the gear approaches the target faster than the available deceleration a_b can
         // stop it, ω_g² > 2·a_b·|e|, brake at the limit now instead of when the linear
@@ -805,7 +812,9 @@ impl Controller {
         reference: Angle,
         theta_l: i64,
     ) -> Output {
-        let win = Window::new(&self.sched, w_gear, self.w_link, current, tau);
+        // The catch's output has its own window; the loop's limit starts afresh after it.
+        let win = Window::new(&self.sched, w_gear, self.w_link, current, tau, 0);
+        self.impact_side = 0;
         let c = win.clamp(&self.sched, u, tau);
         self.finish(&c, true, tau, reference, theta_l, w_gear, current)
     }
@@ -849,13 +858,16 @@ struct Window {
     lo: i32,
     hi_i: i32,
     lo_i: i32,
+    /// The side the impact limit holds the duty on (+1 from above, −1 from below, 0 none).
+    side: i8,
 }
 
 impl Window {
     /// The window for the gear speed `w_gear`, the link speed `w_link` (rad/s Q16), the
-    /// current (A Q16) and the torque estimate `tau` (N·m Q16).
+    /// current (A Q16), the torque estimate `tau` (N·m Q16) and the side the impact limit
+    /// held at the last tick (`held`, as `Window::side`).
     #[inline(always)]
-    fn new(s: &Schedule, w_gear: i32, w_link: i32, current: i32, tau: i32) -> Window {
+    fn new(s: &Schedule, w_gear: i32, w_link: i32, current: i32, tau: i32, held: i8) -> Window {
         let emf = s.duty_per_w.apply(w_gear);
         let di = s.i_win_duty_q16;
         let dl = s.duty_lim_q16;
@@ -874,24 +886,23 @@ impl Window {
         // gear's own the gear kept braking into a link thrown ahead). Only where the
         // beams carry torque now, on the side of τ̂, may the gear close on the link: a
         // bouncing link leaves the wall it was pushed by, and the gear's next push would hit
-        // it. The bound carries the current-based estimate's error, which grows with |i|
-        // (design §11, "Free-play impacts").
+        // it. The bound carries the current-based estimate's error, which grows with |i|.
+        // Once it holds a side, the limit stays there while the gear closes that fast,
+        // whatever τ̂ says: the held duty's own current moves τ̂, and letting it decide
+        // each tick made the duty alternate between the limit's and the loop's (design
+        // §11, "Free-play impacts", "The limit holds its side").
         let closing = w_gear.saturating_sub(w_link);
+        let mut side = 0;
         if closing.saturating_abs() > s.impact_speed_q16 {
-            let contact_bound = s
-                .contact_torque_q16
-                .saturating_add(s.contact_per_amp.apply(current.saturating_abs()));
-            let emf_link = s.duty_per_w.apply(w_link);
-            let matched = emf_link
-                .saturating_sub(emf_link.saturating_sub(emf) >> IMPACT_MATCH_SHIFT)
-                .clamp(lo, hi);
-            if closing > 0 && tau <= contact_bound {
-                hi = hi.min(matched);
-            } else if closing < 0 && tau >= -contact_bound {
-                lo = lo.max(matched);
-            }
+            (hi, lo, side) = impact_limit(s, emf, w_link, current, tau, held, closing, hi, lo);
         }
-        Window { hi, lo, hi_i, lo_i }
+        Window {
+            hi,
+            lo,
+            hi_i,
+            lo_i,
+            side,
+        }
     }
 
     /// `u` (‰ Q16) clamped to the window, with the flags.
@@ -916,6 +927,39 @@ impl Window {
                 duty_saturated: duty_hi || duty_lo,
             },
         }
+    }
+}
+
+/// The free-play impact limit past the impact speed (`Window::new`): the window (`hi`,
+/// `lo`) narrowed to the back-EMF of a speed three quarters of the way to the link's on
+/// the side the gear closes from, and that side (0 where the beams carry the gear's push).
+/// Out of line: the loop's ticks mostly do not reach it.
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+fn impact_limit(
+    s: &Schedule,
+    emf: i32,
+    w_link: i32,
+    current: i32,
+    tau: i32,
+    held: i8,
+    closing: i32,
+    hi: i32,
+    lo: i32,
+) -> (i32, i32, i8) {
+    let contact_bound = s
+        .contact_torque_q16
+        .saturating_add(s.contact_per_amp.apply(current.saturating_abs()));
+    let emf_link = s.duty_per_w.apply(w_link);
+    let matched = emf_link
+        .saturating_sub(emf_link.saturating_sub(emf) >> IMPACT_MATCH_SHIFT)
+        .clamp(lo, hi);
+    if closing > 0 && (held > 0 || tau <= contact_bound) {
+        (hi.min(matched), lo, 1)
+    } else if closing < 0 && (held < 0 || tau >= -contact_bound) {
+        (hi, lo.max(matched), -1)
+    } else {
+        (hi, lo, 0)
     }
 }
 
