@@ -469,6 +469,47 @@ pub fn soft_raw_steps_ringing() -> [Case; 3] {
     ]
 }
 
+/// Three off-nominal raw steps where the free-play impact limit, holding the gear back
+/// from a link it closed on too fast, let go every other tick (the held duty's own current
+/// moved the torque estimate past the contact bound) and the gear met the link at 1.033,
+/// 1.174 and 1.104 σ_allow (docs/design.md §11, "Free-play impacts", "The limit holds its
+/// side"): seeds 1000223 #103, 1000205 #20 and 1000225 #137, their draws written out.
+#[must_use]
+pub fn impact_limit_letting_go() -> [Case; 3] {
+    [
+        Case::written(
+            2548,
+            3.258_632_413_956_736_5e-3,
+            -0.051_070_54,
+            Motion::Step(-0.265_007_754_585_282_7),
+            "resistance=x1.0013863,torque-constant=x0.9390136,back-emf=x1.0763624,\
+             gear-inertia=x1.0930067,gear-friction=x1.2440215,supply=12.144893V,\
+             current-offset=5.749322,current-gain=0.9708428,pot-offset=-1.6985047,\
+             link-inertia=x2.0243723",
+        ),
+        Case::written(
+            1135,
+            3.281_693_845_997_968e-3,
+            0.0,
+            Motion::Step(-0.252_342_087_356_264_57),
+            "resistance=x1.21258,torque-constant=x0.9731315,back-emf=x0.90038687,\
+             gear-inertia=x1.0118113,gear-friction=x2.3445842,supply=11.971165V,\
+             current-offset=5.7171874,current-gain=1.0123703,pot-offset=-2.4797604,\
+             link-inertia=x2.6295831",
+        ),
+        Case::written(
+            1109,
+            4.864_079_522_084_646e-3,
+            0.0,
+            Motion::Step(-0.235_058_227_434_384_54),
+            "resistance=x1.2168783,torque-constant=x0.93670017,back-emf=x0.9429667,\
+             gear-inertia=x1.0062089,gear-friction=x2.2410245,supply=12.147087V,\
+             current-offset=7.262424,current-gain=1.0442493,pot-offset=2.4917333,\
+             link-inertia=x1.0465935",
+        ),
+    ]
+}
+
 /// Three off-nominal grid cases of a warm motor (R ×1.21…×1.36, links 1.9–2.5× heavier
 /// than configured) holding 0.16–0.21 N·m, which overshot a short step or move by 27.2, 25.3
 /// and 21.0 % before the resistance was tracked without a calibration (docs/design.md §11,
