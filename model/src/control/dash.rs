@@ -37,7 +37,7 @@
 //! Formats: speeds Q16 rad/s, accelerations Q16 rad/s², positions I32F32 rad bits.
 
 use super::gain::{q32_to_q16, sat_i32, Gain, Q16_ONE};
-use super::schedule::Schedule;
+use super::schedule::{Schedule, TICKS_PER_S};
 
 /// Fraction of the current headroom (the current limit less the held load) the profile's
 /// acceleration and braking use. Measured on the acceptance grid (seeds 1 / 1000001, 250 +
@@ -287,9 +287,9 @@ impl Dash {
             // s² ≥ 2·a_brake·d: brake from now on, at the deceleration that lands on the
             // target, a = s²/(2·d) (once per step).
             let left_after = q32_to_q16(left.saturating_sub(travel)).max(0);
-            let s2 = i64::from(next) * i64::from(next); // Q32, < 2⁶²
-                                                        // The scaled deceleration is at least a_brake/3: until the target is within that
-                                                        // braking distance it cannot call for braking, and then it is fixed.
+            // Q32, < 2⁶². The scaled deceleration is at least a_brake/3: until the target is
+            // within that braking distance it cannot call for braking, and then it is fixed.
+            let s2 = i64::from(next) * i64::from(next);
             if self.brake_scaled == 0
                 && s2 >= 2 * i64::from(self.brake / BRAKE_SCALE_MAX) * i64::from(left_after)
             {
@@ -314,7 +314,7 @@ impl Dash {
             };
         }
         self.speed = next;
-        let dv = next.saturating_sub(s).saturating_mul(1000); // rad/s² Q16
+        let dv = next.saturating_sub(s).saturating_mul(TICKS_PER_S); // rad/s² Q16
         let (position, velocity_q16, acceleration_q16) = if up {
             (position.saturating_add(travel), next, dv)
         } else {

@@ -26,6 +26,7 @@
 
 use super::dash;
 use super::gain::Gain;
+use super::schedule::TICKS_PER_S;
 use super::trajectory::Reference;
 use crate::units::Angle;
 
@@ -123,7 +124,7 @@ impl Shaper {
             let next = self.speed.saturating_add(i32::from(old));
             let travel = dash::travel(dt, self.speed, next);
             self.speed = next;
-            let a = i32::from(old) * 1000;
+            let a = i32::from(old) * TICKS_PER_S;
             if up {
                 self.position = self.position.saturating_add(travel);
                 (next, a)
