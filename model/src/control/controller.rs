@@ -141,8 +141,6 @@ pub struct Controller {
     /// above, −1 from below, 0 none): it holds until the closing speed is back under the
     /// impact speed (`Window::new`).
     impact_side: i8,
-    /// This tick's current-based coupling torque (the output's `motor_torque_q16`), N·m Q16.
-    tau_motor: i32,
     /// Integrator, duty ‰ in Q32 (I32F32 bits).
     integ: i64,
     /// Hunting at rest (large duty reversals in quick succession).
@@ -199,7 +197,6 @@ impl Controller {
             w_ref: 0,
             w_gear_prev: 0,
             i_filtered: 0,
-            tau_motor: 0,
             impact_side: 0,
             integ: 0,
             hunt: Hunt::NEW,
@@ -355,7 +352,6 @@ impl Controller {
         self.w_ref = 0;
         self.w_gear_prev = 0;
         self.i_filtered = 0;
-        self.tau_motor = 0;
         self.impact_side = 0;
         self.integ = 0;
         self.hunt = Hunt::NEW;
@@ -456,7 +452,6 @@ impl Controller {
             s.kt.apply(self.i_filtered)
                 .saturating_sub(gear_inertial)
                 .saturating_sub(s.bv.apply(w_gear));
-        self.tau_motor = tau_i;
         let tau = match m.gear_pot {
             Some(pot) if s.w_defl_q16 != 0 => {
                 let pot = i32::from(pot) & (i32::from(POT_COUNTS) - 1);
@@ -593,7 +588,7 @@ impl Controller {
                 .catch
                 .output(s, &mut self.integ, self.ff.vel, resting, rest)
             {
-                return self.caught(u, w_gear, current, tau, r.position, theta_l);
+                return self.caught(u, w_gear, current, tau, tau_i, r.position, theta_l);
             }
         }
         // The position loop acts on the gear: where the gear should be (the reference plus
@@ -797,18 +792,22 @@ impl Controller {
                 self.ff.acc,
             );
         }
-        self.finish(&c, stationary, tau, r.position, theta_l, w_gear, current)
+        self.finish(
+            &c, stationary, tau, tau_i, r.position, theta_l, w_gear, current,
+        )
     }
 
     /// The step's end while the catch has the output `u` (‰ Q16): the same limits, flags
     /// and output as the loop's. Out of line: the loop's ticks keep their code.
     #[inline(never)]
+    #[allow(clippy::too_many_arguments)]
     fn caught(
         &mut self,
         u: i32,
         w_gear: i32,
         current: i32,
         tau: i32,
+        tau_i: i32,
         reference: Angle,
         theta_l: i64,
     ) -> Output {
@@ -816,7 +815,7 @@ impl Controller {
         let win = Window::new(&self.sched, w_gear, self.w_link, current, tau, 0);
         self.impact_side = 0;
         let c = win.clamp(&self.sched, u, tau);
-        self.finish(&c, true, tau, reference, theta_l, w_gear, current)
+        self.finish(&c, true, tau, tau_i, reference, theta_l, w_gear, current)
     }
 
     /// The clamped output's duty, the side it met the duty limit on (the raw step's speed
@@ -828,6 +827,7 @@ impl Controller {
         c: &Clamped,
         stationary: bool,
         tau: i32,
+        tau_i: i32,
         reference: Angle,
         theta_l: i64,
         w_gear: i32,
@@ -841,7 +841,7 @@ impl Controller {
             duty,
             flags: c.flags,
             torque_estimate: Torque::from_bits(q16_to_q32(tau)),
-            motor_torque_q16: self.tau_motor,
+            motor_torque_q16: tau_i,
             reference,
             link_angle: Angle::from_bits(theta_l),
             gear_velocity: I32F32::from_bits(q16_to_q32(w_gear)),
