@@ -41,10 +41,12 @@ fn resolvable(l_mm: f64, actual_mm: f64, load_nm: f64) -> bool {
     let d = host_tests::oracle::Design::paper();
     let extra =
         load_nm.abs() * (1.0 / d.stiffness(actual_mm * 1e-3) - 1.0 / d.stiffness(l_mm * 1e-3));
-    let pot_count = (f64::from(model::sensors::POT_SPAN_DEG)
-        / f64::from(model::sensors::POT_COUNTS))
-    .to_radians();
-    extra >= pot_count
+    extra >= pot_count_rad()
+}
+
+/// One count of the gear potentiometer, rad (its span over its counts).
+fn pot_count_rad() -> f64 {
+    (f64::from(model::sensors::POT_SPAN_DEG) / f64::from(model::sensors::POT_COUNTS)).to_radians()
 }
 
 struct Run {
@@ -224,20 +226,11 @@ fn monitor_on_beams(l_mm: i32, softer: f64) -> (f64, bool) {
     use model::control::{Config, Output};
     let mut config = Config::paper(Length::from_int(l_mm));
     config.limits.clutch_tolerance = length_from_um(UNCONFIRMED_TOLERANCE_UM);
-    let servo = Servo::new(
-        &model::Design::paper(),
-        &config,
-        &model::supervisor::SupervisorConfig::DEFAULT,
-    )
-    .unwrap();
-    let sched = servo.controller().schedule();
-    let lim = ClutchLimits::new(sched);
+    let sched = model::control::Schedule::new(&model::Design::paper(), &config).unwrap();
+    let lim = ClutchLimits::new(&sched);
     let free_play = sched.free_play().to_bits() as f64 / 2f64.powi(32);
     let k = host_tests::oracle::Design::paper().stiffness(f64::from(l_mm) * 1e-3);
-    let pot_count = (f64::from(model::sensors::POT_SPAN_DEG)
-        / f64::from(model::sensors::POT_COUNTS))
-    .to_radians();
-    let amplitude = 2.5 * k * pot_count;
+    let amplitude = 2.5 * k * pot_count_rad();
     let mut monitor = ClutchMonitor::new();
     let mut latched = false;
     for tick in 0..2000 {
