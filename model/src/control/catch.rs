@@ -40,10 +40,9 @@ const CONTACT_MARGIN_Q16: i32 = 171;
 /// the link and gave it back most of its speed (docs/design.md §11).
 const CONTACT_TICKS: u32 = 40;
 
-/// Ticks in a row, from the rest hold's start, that its conditions with less than a
-/// quarter of `REST_LOAD_NM` held must hold before the catch takes the output (60 ms after
-/// the hold's 20: an earlier hand-over came while a lightly loaded link settled, and
-/// delayed it; docs/design.md §11).
+/// Ticks in a row, from the rest hold's start, that its conditions must hold before the
+/// catch takes the output (60 ms after the hold's 20: an earlier hand-over came while a
+/// lightly loaded link settled, and delayed it; docs/design.md §11).
 pub const CATCH_TICKS: u16 = 60;
 /// Under the catch's damper, a gear that moves faster than this for `CATCH_LOAD_TICKS` is
 /// pushed by a load: the output goes back to the loop with its integrator (10 mrad/s,
@@ -78,6 +77,8 @@ pub struct Rest {
     pub w_gear: i32,
     /// The loop hunts at rest (`control::hunt`).
     pub hunting: bool,
+    /// Ticks since the link's count last changed (saturating).
+    pub still: u16,
 }
 
 /// The hand-over between the loop and the catch.
@@ -87,7 +88,7 @@ pub struct CatchHold {
     /// Ticks the conditions have held.
     ticks: u16,
     /// The catch has the output; the integrator it set aside, ‰ Q16 (the catch takes it
-    /// with less than a quarter of `REST_LOAD_NM` held).
+    /// with less than `REST_LOAD_NM` held).
     active: bool,
     integ: i32,
     /// Ticks the gear has moved under the damper.
@@ -110,13 +111,16 @@ impl CatchHold {
     /// The output (‰ Q16) while the catch has it, `None` while the loop has it; called
     /// while the reference stands still, `resting` once the rest hold has begun (the
     /// controller starts the hand-over afresh with every command). It takes the output
-    /// once the rest hold's conditions, with less than a quarter of `REST_LOAD_NM` held
-    /// and the gear still, have held for [`CATCH_TICKS`] more: the integrator is set aside
-    /// and cleared, and the gear is a damper (duty 0: the back-EMF) except while a catch
-    /// runs, when it follows the catch's speed (velocity feed-forward `ff_vel`, the
-    /// configured Coulomb friction, K_d). A gear that keeps moving under the damper is
-    /// pushed by a load, and a link that stands still more than a count off is the loop's
-    /// to push: the loop gets the output back with its integrator until the next command.
+    /// once the rest hold's conditions, with the gear still and the link's count changed
+    /// within [`CATCH_STILL_TICKS`] (a link that a light load holds on a wall has nothing
+    /// to catch), have held for [`CATCH_TICKS`] more: the integrator is set aside and
+    /// cleared, and the gear is a damper (duty 0: the back-EMF) except while a catch runs,
+    /// when it follows the catch's speed (velocity feed-forward `ff_vel`, the configured
+    /// Coulomb friction, K_d). A gear that keeps moving under the damper is pushed by a
+    /// load, and a link that stands still more than a count off is the loop's to push: the
+    /// loop gets the output back with its integrator until the next command. When the
+    /// conditions lapse (the link beyond twice the rest zone, a hunt, a torque), the loop
+    /// gets it back with its integrator too, and the hand-over starts again.
     /// Before the rest hold, a test of two flags here; the rest is out of line.
     #[inline]
     pub fn output(
@@ -135,10 +139,12 @@ impl CatchHold {
 
     #[inline(never)]
     fn take(&mut self, s: &Schedule, integ: &mut i64, ff_vel: Gain, r: Rest) -> Option<i32> {
-        let eligible = r.load_abs < s.rest_load_q16 >> 2
+        let eligible = r.load_abs < s.rest_load_q16
             && !r.hunting
             && !self.blocked
-            && (self.active || r.w_gear.saturating_abs() < CATCH_LOAD_SPEED_Q16)
+            && (self.active
+                || (r.w_gear.saturating_abs() < CATCH_LOAD_SPEED_Q16
+                    && u32::from(r.still) < CATCH_STILL_TICKS))
             && r.e_abs <= 2 * s.rest_zone_q16
             && r.tau.saturating_abs() < s.rest_torque_q16;
         self.ticks = if eligible {
@@ -147,7 +153,12 @@ impl CatchHold {
             0
         };
         if self.ticks < CATCH_TICKS {
-            self.active = false;
+            if self.active {
+                // Without its hold the loop met a link drifting off the zone with a kick
+                // that took the beams past σ_allow (docs/design.md §11).
+                *integ = q16_to_q32(self.integ);
+                self.active = false;
+            }
             return None;
         }
         if !self.active {
@@ -195,6 +206,12 @@ impl CatchHold {
                 .saturating_add(friction)
                 .saturating_add(s.kd.apply(w_rad.saturating_sub(r.w_gear))),
         )
+    }
+
+    /// The catch has the output.
+    #[must_use]
+    pub const fn active(&self) -> bool {
+        self.active
     }
 
     /// The loop gets the output back with the integrator set aside, until the next
@@ -542,6 +559,7 @@ mod tests {
             delta: 0,
             w_gear: 0,
             hunting: false,
+            still: 0,
         }
     }
 
@@ -552,7 +570,8 @@ mod tests {
     fn the_catch_takes_the_output_after_catch_ticks_of_the_rest_hold() {
         let s = schedule();
         let (mut h, mut integ) = (CatchHold::NEW, INTEG);
-        let load = s.rest_load_q16 / 8;
+        // Half of `REST_LOAD_NM`: an unloaded move's leftover in the integrator.
+        let load = s.rest_load_q16 / 2;
         // Before the rest hold has begun nothing counts.
         for _ in 0..100 {
             assert_eq!(h.output(&s, &mut integ, s.kd, false, at_rest(load)), None);
@@ -571,10 +590,19 @@ mod tests {
     fn a_held_load_or_a_moving_gear_keeps_the_output_with_the_loop() {
         let s = schedule();
         let mut integ = INTEG;
-        // A quarter of `REST_LOAD_NM` and more in the integrator.
+        // `REST_LOAD_NM` and more in the integrator.
         let mut h = CatchHold::NEW;
         for _ in 0..500 {
-            let r = at_rest(s.rest_load_q16 / 4);
+            let r = at_rest(s.rest_load_q16);
+            assert_eq!(h.output(&s, &mut integ, s.kd, true, r), None);
+        }
+        // A link whose count has not changed for `CATCH_STILL_TICKS`: pressed on a wall.
+        let mut h = CatchHold::NEW;
+        for _ in 0..500 {
+            let r = Rest {
+                still: CATCH_STILL_TICKS as u16,
+                ..at_rest(0)
+            };
             assert_eq!(h.output(&s, &mut integ, s.kd, true, r), None);
         }
         // The gear moving at the load speed when the hand-over would come.
@@ -637,5 +665,28 @@ mod tests {
         // included, and gives it back on the next.
         assert_eq!(ticks + 1, CATCH_STILL_TICKS);
         assert_eq!(integ, INTEG);
+    }
+
+    #[test]
+    fn conditions_that_lapse_give_the_loop_back_its_integrator() {
+        let s = schedule();
+        let (mut h, mut integ) = (CatchHold::NEW, INTEG);
+        for _ in 0..CATCH_TICKS {
+            h.output(&s, &mut integ, s.kd, true, at_rest(0));
+        }
+        assert_eq!(integ, 0);
+        // The link drifts beyond twice the rest zone: the loop, with its hold.
+        let far = Rest {
+            e_abs: 2 * s.rest_zone_q16 + 1,
+            ..at_rest(0)
+        };
+        assert_eq!(h.output(&s, &mut integ, s.kd, true, far), None);
+        assert_eq!(integ, INTEG);
+        // Not blocked: back within the zone, the hand-over starts again.
+        for _ in 1..CATCH_TICKS {
+            assert_eq!(h.output(&s, &mut integ, s.kd, true, at_rest(0)), None);
+        }
+        assert_eq!(h.output(&s, &mut integ, s.kd, true, at_rest(0)), Some(0));
+        assert_eq!(integ, 0);
     }
 }

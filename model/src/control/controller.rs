@@ -475,8 +475,9 @@ impl Controller {
         let in_count =
             (e_q32.wrapping_add(ENCODER_HALF_COUNT_Q32) as u64) < 2 * ENCODER_HALF_COUNT_Q32 as u64;
 
-        // The integrator's duty (‰ Q16), once: it is updated at the end of the tick.
-        let u_i = q32_to_q16(self.integ);
+        // The integrator's duty (‰ Q16): it is updated at the end of the tick (and read
+        // again below when the catch gives back the hold it set aside).
+        let mut u_i = q32_to_q16(self.integ);
         let load_abs = u_i.saturating_abs();
         let stationary = r.stationary();
 
@@ -583,12 +584,22 @@ impl Controller {
                 delta,
                 w_gear,
                 hunting: self.hunt.hunting(),
+                still: self.creep.still(),
             };
+            let was_caught = self.catch.active();
             if let Some(u) = self
                 .catch
                 .output(s, &mut self.integ, self.ff.vel, resting, rest)
             {
                 return self.caught(u, w_gear, current, tau, tau_i, r.position, theta_l);
+            }
+            if was_caught {
+                // Given back with the integrator it set aside: the deflection's feed-forward
+                // starts afresh from this tick's hold (its state rested under the catch, and
+                // the restored hold moves the free play's side at once: a one-tick kick of
+                // up to 100 ‰ in the rest, design §11, "Catching the floating link").
+                u_i = q32_to_q16(self.integ);
+                self.defl_valid = false;
             }
         }
         // The position loop acts on the gear: where the gear should be (the reference plus

@@ -83,6 +83,12 @@ impl Creep {
         self.pushed
     }
 
+    /// Ticks since the link's count last changed (saturating).
+    #[must_use]
+    pub const fn still(&self) -> u16 {
+        self.still
+    }
+
     /// The extra drive of the push, ‰ Q16 (0 without a push).
     #[must_use]
     pub const fn boost_q16(&self) -> i32 {
