@@ -366,7 +366,7 @@ fn assert_at_rest(cases: &[grid::Case]) {
 
 /// Unloaded moves leave 2–8 ‰ of leftover in the integrator, which the rest hold keeps:
 /// the catch used to wait for less than a quarter of `REST_LOAD_NM` and never took these
-/// links, which bounced on (count spans 3–7, 2.6–4.7 counts off at the end). It now takes
+/// links, which bounced on (count spans 3–7, 2.6–5.3 counts off at the end). It now takes
 /// the output below `REST_LOAD_NM` (design §11, "Catching the floating link"); nominal
 /// grid seeds 101, 102 and 103, written out.
 #[test]

@@ -50,8 +50,10 @@ pub const CATCH_TICKS: u16 = 60;
 pub const CATCH_LOAD_SPEED_Q16: i32 = 655;
 /// See [`CATCH_LOAD_SPEED_Q16`].
 pub const CATCH_LOAD_TICKS: u16 = 30;
-/// A link that has not changed count for this many ticks while more than a count off is
-/// handed back to the loop (150 ms).
+/// A link that has not changed count for this many ticks (and four times the interval
+/// between its last two changes) while more than a count off, within the rest zone, is
+/// handed back to the loop (150 ms); the hand-over waits for a count change within as
+/// many.
 pub const CATCH_STILL_TICKS: u32 = 150;
 /// One encoder count, rad Q16.
 const COUNT_RAD_Q16: i32 = (ENCODER_HALF_COUNT_Q32 >> 15) as i32;
@@ -119,8 +121,8 @@ impl CatchHold {
     /// Coulomb friction, K_d). A gear that keeps moving under the damper is pushed by a
     /// load, and a link that stands still more than a count off is the loop's to push: the
     /// loop gets the output back with its integrator until the next command. When the
-    /// conditions lapse (the link beyond twice the rest zone, a hunt, a torque), the loop
-    /// gets it back with its integrator too, and the hand-over starts again.
+    /// conditions lapse (the link beyond three rest zones, a hunt, a torque), the loop gets
+    /// it back with its integrator too, and the hand-over starts again.
     /// Before the rest hold, a test of two flags here; the rest is out of line.
     #[inline]
     pub fn output(
@@ -145,7 +147,9 @@ impl CatchHold {
             && (self.active
                 || (r.w_gear.saturating_abs() < CATCH_LOAD_SPEED_Q16
                     && u32::from(r.still) < CATCH_STILL_TICKS))
-            && r.e_abs <= 2 * s.rest_zone_q16
+            // Out to three rest zones once it has the output: a link that drifted further
+            // off under the catch met the loop's full kick (docs/design.md §11).
+            && r.e_abs <= if self.active { 3 } else { 2 } * s.rest_zone_q16
             && r.tau.saturating_abs() < s.rest_torque_q16;
         self.ticks = if eligible {
             self.ticks.saturating_add(1)
@@ -177,9 +181,10 @@ impl CatchHold {
         let w = self
             .catch
             .step(r.delta, target as i32, w_counts, gap as i32);
-        // A link that stands still more than a count off is the loop's to push (the creep,
-        // a light load's hold): it gets the output back with its integrator.
-        if w == 0 && self.catch.quiet() > CATCH_STILL_TICKS && r.e_abs > COUNT_RAD_Q16 {
+        // A link that stands still more than a count off, within the rest zone, is the
+        // loop's to push (the creep, a light load's hold): it gets the output back with its
+        // integrator. Beyond the zone the loop is not at rest and would throw it.
+        if w == 0 && self.catch.still() && r.e_abs > COUNT_RAD_Q16 && r.e_abs <= s.rest_zone_q16 {
             return self.give_back(integ);
         }
         if w == 0 {
@@ -390,6 +395,13 @@ impl Catch {
     #[must_use]
     pub const fn quiet(&self) -> u32 {
         self.tick.wrapping_sub(self.last_edge)
+    }
+
+    /// The link stands still: its count has not changed for [`CATCH_STILL_TICKS`] nor for
+    /// four times the interval between its last two changes (a slow drift is no stop).
+    #[must_use]
+    pub fn still(&self) -> bool {
+        self.quiet() > CATCH_STILL_TICKS.max(4 * self.interval)
     }
 
     /// The catch under way: it ends [`CONTACT_TICKS`] after the contact shows in the
@@ -675,9 +687,15 @@ mod tests {
             h.output(&s, &mut integ, s.kd, true, at_rest(0));
         }
         assert_eq!(integ, 0);
-        // The link drifts beyond twice the rest zone: the loop, with its hold.
+        // Beyond twice the rest zone, within three: the catch keeps the output.
+        let off = Rest {
+            e_abs: 3 * s.rest_zone_q16,
+            ..at_rest(0)
+        };
+        assert_eq!(h.output(&s, &mut integ, s.kd, true, off), Some(0));
+        // The link drifts beyond three: the loop, with its hold.
         let far = Rest {
-            e_abs: 2 * s.rest_zone_q16 + 1,
+            e_abs: 3 * s.rest_zone_q16 + 1,
             ..at_rest(0)
         };
         assert_eq!(h.output(&s, &mut integ, s.kd, true, far), None);
@@ -688,5 +706,43 @@ mod tests {
         }
         assert_eq!(h.output(&s, &mut integ, s.kd, true, at_rest(0)), Some(0));
         assert_eq!(integ, 0);
+    }
+
+    #[test]
+    fn a_still_link_beyond_the_rest_zone_stays_with_the_catch() {
+        let s = schedule();
+        let (mut h, mut integ) = (CatchHold::NEW, INTEG);
+        for _ in 0..CATCH_TICKS {
+            h.output(&s, &mut integ, s.kd, true, at_rest(0));
+        }
+        let off = Rest {
+            e_abs: s.rest_zone_q16 + 1,
+            e_q32: i64::from(s.rest_zone_q16 + 1) << 16,
+            ..at_rest(0)
+        };
+        for _ in 0..4 * CATCH_STILL_TICKS {
+            assert_eq!(h.output(&s, &mut integ, s.kd, true, off), Some(0));
+        }
+        assert_eq!(integ, 0);
+    }
+
+    /// A link drifting one count per 100 ticks is not still after `CATCH_STILL_TICKS`
+    /// without a count change, only after four of its intervals.
+    #[test]
+    fn a_slow_drift_is_not_a_stop() {
+        let mut c = Catch::NEW;
+        let mut target = 0;
+        for _ in 0..3 {
+            wait(&mut c, 99, target);
+            target -= COUNT;
+            c.step(1, target, 0, GAP);
+        }
+        assert_eq!(c.interval, 100);
+        wait(&mut c, CATCH_STILL_TICKS + 1, target);
+        assert!(!c.still());
+        wait(&mut c, 400 - CATCH_STILL_TICKS - 1, target);
+        assert!(!c.still());
+        wait(&mut c, 1, target);
+        assert!(c.still());
     }
 }
