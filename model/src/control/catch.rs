@@ -578,6 +578,15 @@ mod tests {
     /// 10 ‰ in the integrator, I32F32 bits.
     const INTEG: i64 = 10 << 32;
 
+    /// A hand-over with `INTEG` held: [`CATCH_TICKS`] ticks of a still link at its target.
+    fn handed_over(s: &Schedule) -> (CatchHold, i64) {
+        let (mut h, mut integ) = (CatchHold::NEW, INTEG);
+        for _ in 0..CATCH_TICKS {
+            h.output(s, &mut integ, s.kd, true, at_rest(0));
+        }
+        (h, integ)
+    }
+
     #[test]
     fn the_catch_takes_the_output_after_catch_ticks_of_the_rest_hold() {
         let s = schedule();
@@ -632,10 +641,7 @@ mod tests {
     #[test]
     fn a_gear_pushed_under_the_damper_gives_the_loop_back_its_integrator() {
         let s = schedule();
-        let (mut h, mut integ) = (CatchHold::NEW, INTEG);
-        for _ in 0..CATCH_TICKS {
-            h.output(&s, &mut integ, s.kd, true, at_rest(0));
-        }
+        let (mut h, mut integ) = handed_over(&s);
         assert_eq!(integ, 0);
         // The gear moves faster than the load speed under the damper, the link with it.
         let pushed = Rest {
@@ -682,10 +688,7 @@ mod tests {
     #[test]
     fn conditions_that_lapse_give_the_loop_back_its_integrator() {
         let s = schedule();
-        let (mut h, mut integ) = (CatchHold::NEW, INTEG);
-        for _ in 0..CATCH_TICKS {
-            h.output(&s, &mut integ, s.kd, true, at_rest(0));
-        }
+        let (mut h, mut integ) = handed_over(&s);
         assert_eq!(integ, 0);
         // Beyond twice the rest zone, within three: the catch keeps the output.
         let off = Rest {
@@ -711,10 +714,7 @@ mod tests {
     #[test]
     fn a_still_link_beyond_the_rest_zone_stays_with_the_catch() {
         let s = schedule();
-        let (mut h, mut integ) = (CatchHold::NEW, INTEG);
-        for _ in 0..CATCH_TICKS {
-            h.output(&s, &mut integ, s.kd, true, at_rest(0));
-        }
+        let (mut h, mut integ) = handed_over(&s);
         let off = Rest {
             e_abs: s.rest_zone_q16 + 1,
             e_q32: i64::from(s.rest_zone_q16 + 1) << 16,
