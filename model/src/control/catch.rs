@@ -401,7 +401,7 @@ impl Catch {
     /// four times the interval between its last two changes (a slow drift is no stop).
     #[must_use]
     pub fn still(&self) -> bool {
-        self.quiet() > CATCH_STILL_TICKS.max(4 * self.interval)
+        self.quiet() > CATCH_STILL_TICKS.max(self.interval.saturating_mul(4))
     }
 
     /// The catch under way: it ends [`CONTACT_TICKS`] after the contact shows in the
