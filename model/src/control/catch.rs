@@ -13,6 +13,7 @@
 //! counts: positions in counts Q16 relative to the target, speeds in counts per tick Q16.
 
 use super::controller::COUNT_PER_TICK_Q16;
+use super::creep::CREEP_STILL_INTERVALS;
 use super::gain::{q16_to_q32, q32_to_q16, Gain, Q16_ONE};
 use super::schedule::Schedule;
 use crate::sensors::ENCODER_HALF_COUNT_Q32;
@@ -398,10 +399,14 @@ impl Catch {
     }
 
     /// The link stands still: its count has not changed for [`CATCH_STILL_TICKS`] nor for
-    /// four times the interval between its last two changes (a slow drift is no stop).
+    /// the creep's `CREEP_STILL_INTERVALS` times the interval between its last two changes
+    /// (a slow drift is no stop; the creep's own rule, with the catch's wait).
     #[must_use]
     pub fn still(&self) -> bool {
-        self.quiet() > CATCH_STILL_TICKS.max(self.interval.saturating_mul(4))
+        let intervals = self
+            .interval
+            .saturating_mul(u32::from(CREEP_STILL_INTERVALS));
+        self.quiet() > CATCH_STILL_TICKS.max(intervals)
     }
 
     /// The catch under way: it ends [`CONTACT_TICKS`] after the contact shows in the

@@ -597,7 +597,7 @@ impl Controller {
                 // Given back with the integrator it set aside: the deflection's feed-forward
                 // starts afresh from this tick's hold (its state rested under the catch, and
                 // the restored hold moves the free play's side at once: a one-tick kick of
-                // up to 100 ‰ in the rest, design §11, "Catching the floating link").
+                // up to 150 ‰ in the rest, design §11, "Catching the floating link").
                 u_i = q32_to_q16(self.integ);
                 self.defl_valid = false;
             }
