@@ -162,6 +162,15 @@ fn a_link_thrown_ahead_by_its_load_meets_the_braking_gear_within_the_beams() {
     assert_within_the_beams(&grid::braking_into_a_link_thrown_ahead());
 }
 
+/// Raw steps on a cold motor (R ×0.82–0.83): its observer read the braking gear too slow
+/// to show it closing on the link, and the gear met it at 1.76, 1.76 and 1.55 σ_allow. With
+/// the observer's resistance read from the step's first duty jump, 0.63, 0.78 and 0.55
+/// (design §11, "The observer's resistance from a raw step's first tick").
+#[test]
+fn raw_steps_on_a_cold_motor_see_their_gear_close_on_the_link() {
+    assert_within_the_beams(&grid::cold_motors_braking());
+}
+
 /// Each case keeps the beams below σ_allow and latches no fault.
 fn assert_within_the_beams(cases: &[grid::Case]) {
     for case in cases {
@@ -349,6 +358,16 @@ fn a_warm_motor_under_load_is_tracked_without_a_calibration() {
 #[test]
 fn links_without_load_are_caught_at_their_target() {
     assert_at_rest(&grid::links_left_bouncing());
+}
+
+/// Unloaded raw steps on a motor 19–20 % colder or 39 % warmer than configured, links
+/// ×1.9…×2.9: the loop left them bouncing (count spans 5, 7 and 11, 3.4–9.3 counts off).
+/// With the observer's resistance read from the step's first duty jump the catch stops
+/// them within a count (0.17, 0.41 and 0.09 counts off; design §11, "The observer's
+/// resistance from a raw step's first tick").
+#[test]
+fn unloaded_steps_on_a_cold_or_warm_motor_come_to_rest() {
+    assert_at_rest(&grid::unloaded_steps_off_the_configured_resistance());
 }
 
 /// Every limit of the grid but the settling time and the raw steps' bound, for each case.

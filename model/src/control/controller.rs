@@ -6,6 +6,7 @@ use fixed::types::I32F32;
 use super::catch::{CatchHold, Rest};
 use super::config::Config;
 use super::creep::Creep;
+use super::duty_jump::DutyJump;
 use super::error::ControlError;
 use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Q16_ONE};
 use super::hunt::Hunt;
@@ -170,6 +171,8 @@ pub struct Controller {
     move_drive: MoveDrive,
     /// The running move's velocity feed-forward scale.
     speed_scale: SpeedScale,
+    /// The observer's resistance from a raw step's first duty jump.
+    duty_jump: DutyJump,
     /// The catch of a floating link at rest.
     catch: CatchHold,
 }
@@ -214,6 +217,7 @@ impl Controller {
             rest_ticks: 0,
             move_drive: MoveDrive::NEW,
             speed_scale: SpeedScale::NEW,
+            duty_jump: DutyJump::NEW,
         })
     }
 
@@ -275,6 +279,10 @@ impl Controller {
     pub fn command(&mut self, cmd: Command) -> Result<(), ControlError> {
         let ff = FeedForward::for_command(&self.sched, &self.config, &cmd)?;
         let from = self.traj.reference().position.to_bits();
+        // A raw step from rest reads the observer's resistance from its duty jump (design
+        // §11, "The observer's resistance from a raw step's first tick").
+        self.duty_jump
+            .arm(matches!(cmd, Command::Step { .. }) && self.traj.reference().stationary());
         match cmd {
             // A raw step runs the near-time-optimal profile, planned with the load the
             // integrator holds now.
@@ -333,6 +341,7 @@ impl Controller {
     /// [`ControlError::TrajectoryOutOfRange`]; the running trajectory is untouched.
     pub fn jump(&mut self, target: Angle) -> Result<(), ControlError> {
         self.traj.command(Command::Step { target })?;
+        self.duty_jump.arm(false);
         self.ff = FeedForward::rigid(&self.sched);
         self.move_drive = MoveDrive::NEW;
         self.speed_scale = SpeedScale::NEW;
@@ -373,6 +382,18 @@ impl Controller {
     /// gear travel for its velocity feed-forward's scale (design §11, "The velocity
     /// feed-forward for the actuator a move meets"). `out` is that step's output.
     pub fn track_speed(&mut self, out: &Output) {
+        let s = &mut self.sched;
+        // The current back in sense counts (1024 per A: Q16 A >> 6, exact).
+        let counts = (out.current.to_bits() >> (16 + ADC_TO_Q16_SHIFT)) as i32;
+        if let Some(w) = self.duty_jump.take(
+            i32::from(out.duty),
+            counts,
+            s.w_per_count_cfg_q32,
+            s.w_per_duty_q32,
+            s.w_step_per_count_q32,
+        ) {
+            s.w_per_count_q32 = w;
+        }
         if self.traj.reference().stationary() {
             self.speed_scale.stop();
         }
@@ -428,9 +449,10 @@ impl Controller {
         let current = adc << ADC_TO_Q16_SHIFT; // A, Q16 (|adc| < 2¹⁶: no overflow)
         let applied = m.applied_duty.unwrap_or(self.duty_prev);
         // Plain i64 products: validation bounds V_s ≤ 100 V, R ≤ 1000 Ω, k_e ≥ 0.01 V·s/rad,
-        // so 0 ≤ w_per_duty_q32 < 10·2³² < 2³⁶ and 0 ≤ w_per_count_q32 < 98·2³² < 2³⁹;
-        // with |applied| ≤ 2¹⁵ and |adc| < 2¹⁶ the terms are below 2⁵¹ and 2⁵⁵ and their
-        // difference below 2⁵⁶: nothing to saturate (the saturating forms cost ~30
+        // so 0 ≤ w_per_duty_q32 < 10·2³² < 2³⁶ and 0 ≤ w_per_count_q32 < 1.6·98·2³² < 2⁴⁰
+        // (a raw step's estimate is at most 1.6 times the configured one, `duty_jump`);
+        // with |applied| ≤ 2¹⁵ and |adc| < 2¹⁶ the terms are below 2⁵¹ and 2⁵⁶ and their
+        // difference below 2⁵⁷: nothing to saturate (the saturating forms cost ~30
         // instructions a tick on Cortex-M3).
         let w_gear =
             q32_to_q16(i64::from(applied) * s.w_per_duty_q32 - i64::from(adc) * s.w_per_count_q32);

@@ -5,7 +5,8 @@
 //! formula are in `docs/design.md` §11; in short, per tick:
 //!
 //! 1. unwrap the link encoder (angle at the centre of the count) and read the current;
-//! 2. gear velocity from the back-EMF observer ω_g = (V − R·i)/k_e (no differentiation);
+//! 2. gear velocity from the back-EMF observer ω_g = (V − R·i)/k_e (no differentiation;
+//!    its R read from a raw step's first duty jump after the tick, [`duty_jump`]);
 //! 3. coupling torque: current-based (current and gear velocity through the derivative
 //!    filter, so that the observer's jump on a duty step is no torque), blended with the
 //!    pot's deflection-based estimate by inverse variance;
@@ -48,6 +49,7 @@ pub mod config;
 pub mod controller;
 pub mod creep;
 pub mod dash;
+pub mod duty_jump;
 pub mod error;
 pub mod gain;
 pub mod hunt;

@@ -224,10 +224,15 @@ pub struct Schedule {
     /// ‰ per A of current: (1000/V)·R.
     pub(crate) duty_per_amp: Gain,
     /// Back-EMF observer: ω_g = duty·w_per_duty − (adc − mid)·w_per_count (rad/s), Q32;
-    /// the validated motor ranges bound them to [0, 2³⁶) and [0, 2³⁹) (the controller's
-    /// products rely on it).
+    /// the validated motor ranges bound them to [0, 2³⁶) and [0, 2³⁹), w_per_count to
+    /// [0, 2⁴⁰) once a raw step's estimate is in (the controller's products rely on it).
     pub(crate) w_per_duty_q32: i64,
     pub(crate) w_per_count_q32: i64,
+    /// w_per_count as configured (`w_per_count_q32` may follow a raw step's duty jump,
+    /// [`super::duty_jump`]), and the gear's speed change in one tick per count of added
+    /// current, k_t·dt/(J_g·counts per A), rad/s Q32.
+    pub(crate) w_per_count_cfg_q32: i64,
+    pub(crate) w_step_per_count_q32: i64,
     /// ‰ per rad/s of gear velocity (back-EMF): (1000/V)·k_e.
     pub(crate) duty_per_w: Gain,
     /// Torque estimate: k_t (N·m/A), J_g/dt (N·m per rad/s of gear velocity change in
@@ -453,6 +458,7 @@ impl Schedule {
             None => pole_placement(&p, w)?,
         };
         let ticks_per_s = I64F64::from_num(TICKS_PER_S);
+        let w_per_count = to_q32(div(div(r, ke)?, I64F64::from_num(ADC_COUNTS_PER_A))?)?;
         let dt = I64F64::ONE / i128::from(TICKS_PER_S);
         let tau_f = div(I64F64::ONE, mul(I64F64::from_num(DERIV_FILTER_N), w)?)?;
         let alpha = div(dt, add(tau_f, dt)?)?;
@@ -580,7 +586,12 @@ impl Schedule {
             torque_per_duty: to_gain(div(p.torque_per_volt, duty_per_volt)?)?,
             duty_per_amp,
             w_per_duty_q32: to_q32(div(div(p.supply, ticks_per_s)?, ke)?)?,
-            w_per_count_q32: to_q32(div(div(r, ke)?, I64F64::from_num(ADC_COUNTS_PER_A))?)?,
+            w_per_count_q32: w_per_count,
+            w_per_count_cfg_q32: w_per_count,
+            w_step_per_count_q32: to_q32(div(
+                div(kt, mul(p.j_gear, ticks_per_s)?)?,
+                I64F64::from_num(ADC_COUNTS_PER_A),
+            )?)?,
             duty_per_w: to_gain(mul(duty_per_volt, ke)?)?,
             kt: to_gain(kt)?,
             gear_inertia_per_dt: to_gain(mul(p.j_gear, ticks_per_s)?)?,

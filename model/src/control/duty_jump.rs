@@ -1,0 +1,254 @@
+//! The back-EMF observer's resistance, read from the duty jump a raw step starts with
+//! (docs/design.md §11, "The observer's resistance from a raw step's first tick").
+//!
+//! The observer reads the gear velocity as ω̂ = d·w_d − n·w_n: d the applied duty (‰), n
+//! the current sense's counts from its zero, w_d = V̂_s/(1000·k̂_e) and w_n =
+//! R̂/(k̂_e·counts per A). A copper colder or warmer than configured makes w_n wrong, and
+//! ω̂ then carries a bias (R − R̂)·i/k̂_e that follows the current: at 1 A, 0.8 rad/s for
+//! R ×0.8, enough to hide a braking gear's closing speed from the free-play impact limit.
+//!
+//! A raw step from rest jumps the duty by Δd in one tick, and the current steps by Δn.
+//! Before the jump the gear was held (its torque balanced), so within that tick its speed
+//! changes only by what the added current accelerates it, Δω = k̂_t·Δi·dt/Ĵ_g (the gear
+//! alone, crossing the free play). The observer agrees with that when
+//!
+//! ```text
+//! Δd·w_d − Δn·w_n = Δω   ⇒   w_n = Δd·w_d/Δn − k̂_t·dt/(Ĵ_g·counts per A)
+//! ```
+//!
+//! Both differences cancel the current sense's offset and the back-EMF before the jump;
+//! the supply's and the current sense's gain errors are lumped into w_n as the observer
+//! needs them. Measured on the 197 of the 255 raw steps of two off-nominal grid seeds
+//! (1000101, 1000102) that gave one: 0.94…1.13 of the simulated motor's R/gain, the middle
+//! 90 % within 0.97…1.03 (a link held in contact takes some of the gear's acceleration).
+//!
+//! It runs after the control step (`Controller::track_speed`, the service's per-tick
+//! work): per tick two stores; on the step's second tick one 64-bit division.
+//!
+//! Formats: w_d, w_n and the correction in rad/s per ‰ or per count, Q32 (the schedule's).
+
+/// Least duty jump, ‰, that gives an estimate: 100 ‰ is 1.2 V at 12 V, about 0.15 A
+/// through 8 Ω. Measured on the off-nominal grid (seeds 1000101…1000130): 300, 200, 150,
+/// 100 and 50 ‰ (with the least current step below alike) gave 1 432, 1 347, 1 312, 1 280
+/// and 1 271 overshoot violations (1 493 without the estimate), the nominal grid unchanged.
+pub const MIN_JUMP_PERMILLE: i32 = 100;
+/// Least current step, counts (0.1 A): the sense's noise, 2 counts a sample, is then 3 %
+/// of it.
+pub const MIN_STEP_COUNTS: i32 = 100;
+/// Largest |current| after the jump, counts (1.8 A): the sense reads ±2 A.
+pub const MAX_COUNTS: i32 = 1843;
+/// Relative difference from the configured w_n, in thousandths, below which the
+/// configured one stays: twice the estimate's own error.
+pub const TOLERANCE_PERMILLE: i64 = 50;
+/// The estimate's range, in thousandths of the configured w_n: R ×0.8…×1.4 (copper from
+/// cold to hot) times a current-sense gain of ±5 % (docs/design.md §9), with a margin.
+/// Outside it, something else moved the current (a stalled or a bouncing gear).
+pub const RANGE_PERMILLE: (i64, i64) = (700, 1600);
+
+/// The jump's state across the step's first two ticks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DutyJump {
+    /// Ticks until the estimate: 2 at the command, 0 when done or not armed.
+    armed: u8,
+    /// Duty of the tick before (‰) and current counts of the last tick.
+    duty_prev: i32,
+    counts_prev: i32,
+    /// The duty jump under way, ‰ (set on the step's first tick).
+    jump: i32,
+}
+
+impl DutyJump {
+    /// Not armed.
+    pub const NEW: DutyJump = DutyJump {
+        armed: 0,
+        duty_prev: 0,
+        counts_prev: 0,
+        jump: 0,
+    };
+
+    /// A raw step was commanded: the next two ticks may give an estimate, if the reference
+    /// stood still before it (`from_rest`: the gear held, its torque balanced).
+    pub fn arm(&mut self, from_rest: bool) {
+        self.armed = if from_rest { 2 } else { 0 };
+    }
+
+    /// After each control step: the duty it put out (‰) and the current it measured
+    /// (counts from the sense's zero). Returns the observer's w_n (rad/s per count, Q32)
+    /// on the step's second tick: the estimate when it differs from `configured` by more
+    /// than [`TOLERANCE_PERMILLE`] and lies in [`RANGE_PERMILLE`], else `configured`;
+    /// `None` on every other tick. `w_d`: the schedule's w_d (rad/s per ‰, Q32);
+    /// `w_step`: k̂_t·dt/(Ĵ_g·counts per A) (rad/s per count, Q32).
+    pub fn take(
+        &mut self,
+        duty: i32,
+        counts: i32,
+        configured: i64,
+        w_d: i64,
+        w_step: i64,
+    ) -> Option<i64> {
+        let (duty_prev, counts_prev) = (self.duty_prev, self.counts_prev);
+        self.duty_prev = duty;
+        self.counts_prev = counts;
+        match self.armed {
+            2 => {
+                // The step's first tick: its duty is the jump; the current was measured
+                // under the duty before.
+                self.jump = duty.saturating_sub(duty_prev);
+                self.armed = if self.jump.saturating_abs() >= MIN_JUMP_PERMILLE {
+                    1
+                } else {
+                    0
+                };
+                None
+            }
+            1 => {
+                self.armed = 0;
+                Some(estimate(
+                    self.jump,
+                    counts.saturating_sub(counts_prev),
+                    counts,
+                    configured,
+                    w_d,
+                    w_step,
+                ))
+            }
+            _ => None,
+        }
+    }
+}
+
+/// w_n from a duty jump `jump` (‰) and the current step `step` it gave (counts), the
+/// current after it `counts`; `configured` when the step is too small, of the other sign,
+/// out of the sense's range, or the estimate within the tolerance or out of range.
+fn estimate(jump: i32, step: i32, counts: i32, configured: i64, w_d: i64, w_step: i64) -> i64 {
+    if step.saturating_abs() < MIN_STEP_COUNTS
+        || (step > 0) != (jump > 0)
+        || counts.saturating_abs() > MAX_COUNTS
+    {
+        return configured;
+    }
+    // |jump| ≤ 2 000 and w_d < 2³⁶ (the schedule's bound): the product is below 2⁴⁷.
+    let w = i64::from(jump) * w_d / i64::from(step) - w_step;
+    let c = i128::from(configured);
+    let (lo, hi) = RANGE_PERMILLE;
+    let ratio = i128::from(w) * 1000;
+    let within = (ratio - 1000 * c).abs() <= i128::from(TOLERANCE_PERMILLE) * c;
+    if within || ratio < i128::from(lo) * c || ratio > i128::from(hi) * c {
+        configured
+    } else {
+        w
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const Q32: f64 = 4_294_967_296.0;
+    /// The configured motor (AX-12A class, docs/design.md §3): V_s, R, k_t, k_e, J_g.
+    const VS: f64 = 12.0;
+    const R: f64 = 8.0;
+    const KT: f64 = 1.0;
+    const KE: f64 = 1.94;
+    const JG: f64 = 3.2e-3;
+    const COUNTS_PER_A: f64 = 1024.0;
+
+    /// The schedule's w_d, w_n and the step correction for the configured motor, Q32.
+    fn configured() -> (i64, i64, i64) {
+        let w_d = VS / (1000.0 * KE);
+        let w_n = R / (KE * COUNTS_PER_A);
+        let w_step = KT * 1e-3 / (JG * COUNTS_PER_A);
+        (
+            (w_d * Q32) as i64,
+            (w_n * Q32) as i64,
+            (w_step * Q32) as i64,
+        )
+    }
+
+    /// A motor with resistance `r` and current-sense gain `gain` and offset `offset`
+    /// (counts) holds `hold` N·m still, then its duty jumps from the holding duty to
+    /// `jump` ‰ above it: the gear alone, Euler in 10 000 substeps of the tick, the current
+    /// algebraic (V − k_e·ω)/R. Returns the duties and the sense's counts of the tick
+    /// before and the tick after.
+    fn jump(r: f64, gain: f64, offset: f64, hold: f64, jump: f64) -> ((i32, i32), (i32, i32)) {
+        let i0 = hold / KT;
+        let d0 = (1000.0 * r * i0 / VS).round();
+        let d1 = d0 + jump;
+        let v1 = d1 * VS / 1000.0;
+        let (mut w, n) = (0.0f64, 10_000);
+        let dt = 1e-3 / f64::from(n);
+        for _ in 0..n {
+            let i = (v1 - KE * w) / r;
+            w += (KT * i - hold) / JG * dt;
+        }
+        let i1 = (v1 - KE * w) / r;
+        let counts = |i: f64| (gain * COUNTS_PER_A * i + offset).round() as i32;
+        ((d0 as i32, counts(i0)), (d1 as i32, counts(i1)))
+    }
+
+    /// The step's two ticks through a freshly armed [`DutyJump`].
+    fn estimated(before: (i32, i32), after: (i32, i32)) -> Option<i64> {
+        let (w_d, w_n, w_step) = configured();
+        let mut j = DutyJump::NEW;
+        assert_eq!(j.take(before.0, before.1, w_n, w_d, w_step), None);
+        j.arm(true);
+        // The step's first tick: its duty is the jump, its current the one before.
+        assert_eq!(j.take(after.0, before.1, w_n, w_d, w_step), None);
+        let w = j.take(after.0, after.1, w_n, w_d, w_step);
+        assert_eq!(j.take(after.0, after.1, w_n, w_d, w_step), None, "once");
+        w
+    }
+
+    #[test]
+    fn a_cold_motor_is_read_from_the_jump_through_the_sense_errors() {
+        // R ×0.8, the sense 3 % high and 15 counts off, 0.1 N·m held, 400 ‰ jump: the
+        // observer needs R/(k_e·gain·counts per A).
+        for (r, gain, offset, hold, dj) in [
+            (6.4, 1.03, 15.0, 0.1, 400.0),
+            (6.4, 0.95, -20.0, -0.2, -600.0),
+            (11.2, 1.0, 5.0, 0.0, 350.0),
+        ] {
+            let (before, after) = jump(r, gain, offset, hold, dj);
+            let w = estimated(before, after).expect("an estimate") as f64 / Q32;
+            let truth = r / (KE * gain * COUNTS_PER_A);
+            assert!(
+                (w / truth - 1.0).abs() < 0.01,
+                "R {r}, gain {gain}: {w:e} against {truth:e}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_motor_as_configured_keeps_the_configured_observer() {
+        let (_, w_n, _) = configured();
+        for (offset, hold, dj) in [(0.0, 0.0, 400.0), (20.0, 0.3, -700.0), (-20.0, -0.1, 300.0)] {
+            let (before, after) = jump(R, 1.0, offset, hold, dj);
+            assert_eq!(estimated(before, after), Some(w_n));
+            // 1.5 % warmer: still within the tolerance.
+            let (before, after) = jump(R * 1.015, 1.0, offset, hold, dj);
+            assert_eq!(estimated(before, after), Some(w_n));
+        }
+    }
+
+    #[test]
+    fn small_jumps_moving_gears_and_implausible_steps_give_nothing() {
+        let (w_d, w_n, w_step) = configured();
+        // A jump below `MIN_JUMP_PERMILLE`: no estimate on the second tick.
+        let (before, after) = jump(6.4, 1.0, 0.0, 0.0, 80.0);
+        assert_eq!(estimated(before, after), None);
+        // Armed from a moving reference: nothing.
+        let (before, after) = jump(6.4, 1.0, 0.0, 0.0, 400.0);
+        let mut j = DutyJump::NEW;
+        j.take(before.0, before.1, w_n, w_d, w_step);
+        j.arm(false);
+        assert_eq!(j.take(after.0, before.1, w_n, w_d, w_step), None);
+        assert_eq!(j.take(after.0, after.1, w_n, w_d, w_step), None);
+        // A current step of the other sign than the jump, one too small, one beyond the
+        // sense's range, an estimate out of range: the configured observer.
+        assert_eq!(estimate(400, -300, 300, w_n, w_d, w_step), w_n);
+        assert_eq!(estimate(400, 80, 80, w_n, w_d, w_step), w_n);
+        assert_eq!(estimate(400, 500, 1900, w_n, w_d, w_step), w_n);
+        // 400 ‰ over 1000 counts reads about half the configured R: out of range.
+        assert_eq!(estimate(400, 1000, 1000, w_n, w_d, w_step), w_n);
+    }
+}
