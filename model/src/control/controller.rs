@@ -378,9 +378,11 @@ impl Controller {
     }
 
     /// After [`Controller::step`], outside the control step (the service's per-tick work,
-    /// as the rest resistance's window): a loaded move's observer velocity, current and
-    /// gear travel for its velocity feed-forward's scale (design §11, "The velocity
-    /// feed-forward for the actuator a move meets"). `out` is that step's output.
+    /// as the rest resistance's window): a raw step's first duty jump for the observer's
+    /// resistance (design §11, "The observer's resistance from a raw step's first tick"),
+    /// then a loaded move's observer velocity, current and gear travel for its velocity
+    /// feed-forward's scale (design §11, "The velocity feed-forward for the actuator a move
+    /// meets"). `out` is that step's output.
     pub fn track_speed(&mut self, out: &Output) {
         let s = &mut self.sched;
         // The current back in sense counts (1024 per A: Q16 A >> 6, exact).
