@@ -20,7 +20,8 @@
 //! the supply's and the current sense's gain errors are lumped into w_n as the observer
 //! needs them. Measured on the 197 of the 255 raw steps of two off-nominal grid seeds
 //! (1000101, 1000102) that gave one: 0.94…1.13 of the simulated motor's R/gain, the middle
-//! 90 % within 0.97…1.03 (a link held in contact takes some of the gear's acceleration).
+//! 90 % within 0.97…1.03 (where the link is held in contact, some of the added torque
+//! accelerates it as well).
 //!
 //! It runs after the control step (`Controller::track_speed`, the service's per-tick
 //! work): per tick two stores; on the step's second tick one 64-bit division.
@@ -38,7 +39,8 @@ pub const MIN_STEP_COUNTS: i32 = 100;
 /// Largest |current| after the jump, counts (1.8 A): the sense reads ±2 A.
 pub const MAX_COUNTS: i32 = 1843;
 /// Relative difference from the configured w_n, in thousandths, below which the
-/// configured one stays: twice the estimate's own error.
+/// configured one stays: beyond the middle 90 % of the estimate's spread (±3 %, module
+/// docs).
 pub const TOLERANCE_PERMILLE: i64 = 50;
 /// The estimate's range, in thousandths of the configured w_n: R ×0.8…×1.4 (copper from
 /// cold to hot) times a current-sense gain of ±5 % (docs/design.md §9), with a margin.
