@@ -329,11 +329,17 @@ fn raw_steps_at_soft_settings_settle_without_ringing() {
 /// Runs `cases` as the grid does and checks every limit of the grid but the raw steps'
 /// time-optimal bound (still open there).
 fn assert_every_limit_but_the_time_bound(cases: &[grid::Case]) {
+    assert_every_limit_but(cases, &[grid::RAW_STEP_BOUND]);
+}
+
+/// Runs `cases` as the grid does and checks every limit of the grid but those named in
+/// `open` (`grid::Outcome::figures`' names).
+fn assert_every_limit_but(cases: &[grid::Case], open: &[&str]) {
     for (i, case) in cases.iter().enumerate() {
         let o = grid::run(i, case);
         println!("{}", sim::describe(&case.to_string(), &o.metrics));
         for (name, value, limit, met) in o.figures() {
-            if name != "raw-step settling / T_opt" {
+            if !open.contains(&name) {
                 assert!(met, "{case}: {name} {value:.3} (limit {limit})");
             }
         }
@@ -372,15 +378,7 @@ fn unloaded_steps_on_a_cold_or_warm_motor_come_to_rest() {
 
 /// Every limit of the grid but the settling time and the raw steps' bound, for each case.
 fn assert_at_rest(cases: &[grid::Case]) {
-    for (i, case) in cases.iter().enumerate() {
-        let o = grid::run(i, case);
-        println!("{}", sim::describe(&case.to_string(), &o.metrics));
-        for (name, value, limit, met) in o.figures() {
-            if name != "raw-step settling / T_opt" && name != "settling / limit" {
-                assert!(met, "{case}: {name} {value:.3} (limit {limit})");
-            }
-        }
-    }
+    assert_every_limit_but(cases, &[grid::RAW_STEP_BOUND, grid::SETTLING]);
 }
 
 /// Unloaded moves leave 2–8 ‰ of leftover in the integrator, which the rest hold keeps:

@@ -35,11 +35,11 @@ use plant::overrides::Override;
 /// little time there). An entry leaves this list when its metric holds on the long run.
 const OPEN: &[&str] = &[
     "overshoot %",
-    "settling / limit",
+    grid::SETTLING,
     "steady-state error counts",
     "rest count span",
     "rest duty span ‰",
-    "raw-step settling / T_opt",
+    grid::RAW_STEP_BOUND,
 ];
 
 /// Open on the off-nominal grid only: peak stress by free-play impacts of links heavier

@@ -28,6 +28,8 @@
 //!
 //! Formats: w_d, w_n and the correction in rad/s per ‰ or per count, Q32 (the schedule's).
 
+use crate::sensors::ADC_MID;
+
 /// Least duty jump, ‰, that gives an estimate: 100 ‰ is 1.2 V at 12 V, about 0.15 A
 /// through 8 Ω. Measured on the off-nominal grid (seeds 1000101…1000130): 300, 200, 150,
 /// 100 and 50 ‰ (with the least current step below alike) gave 1 432, 1 347, 1 312, 1 280
@@ -36,8 +38,9 @@ pub const MIN_JUMP_PERMILLE: i32 = 100;
 /// Least current step, counts (0.1 A): the sense's noise, 2 counts a sample, is then 3 %
 /// of it.
 pub const MIN_STEP_COUNTS: i32 = 100;
-/// Largest |current| after the jump, counts (1.8 A): the sense reads ±2 A.
-pub const MAX_COUNTS: i32 = 1843;
+/// Largest |current| after the jump, counts: 90 % of the sense's half range (1 843 counts,
+/// 1.8 A of its ±2 A).
+pub const MAX_COUNTS: i32 = ADC_MID as i32 * 9 / 10;
 /// Relative difference from the configured w_n, in thousandths, below which the
 /// configured one stays: beyond the middle 90 % of the estimate's spread (±3 %, module
 /// docs).
