@@ -47,7 +47,7 @@ use model::control::schedule::{
     REST_TORQUE_NM, REST_ZONE_FREE_PLAYS, SUPPLY_TOLERANCE, TORQUE_FEEDBACK_CORNER,
 };
 use model::control::shaper::SHAPER_LEN;
-use model::control::{dash, move_drive, Command, Config, Schedule, BW_MAX, BW_RATIO};
+use model::control::{dash, duty_jump, move_drive, Command, Config, Schedule, BW_MAX, BW_RATIO};
 use model::sensors::{self, encoder_delta, POT_SPAN_DEG};
 use model::servo::{brakes_on, BridgeDemand, TickInput};
 use model::supervisor::{Fault, FaultCode, FaultSet, Supervisor};
@@ -823,6 +823,10 @@ pub struct FloatController {
     limited: f32,
     /// The running move's drive sums and its r̈ feed-forward scale.
     move_drive: FloatMoveDrive,
+    /// The duty jump's probe of a move from rest (as `duty_jump::DutyJump`), ‰, and the
+    /// ticks it has left (2: add it, 1: take it away).
+    probe: f32,
+    probe_ticks: u8,
 }
 
 /// A move's drive sums and the r̈ feed-forward scale they give (`model::control::move_drive`).
@@ -909,6 +913,8 @@ impl FloatController {
             torque_error_lp: 0.0,
             limited: 0.0,
             move_drive: FloatMoveDrive::NEW,
+            probe: 0.0,
+            probe_ticks: 0,
         }
     }
 
@@ -918,6 +924,23 @@ impl FloatController {
     pub fn command(&mut self, cmd: Command) {
         let s = &self.s;
         let from = self.traj.pos;
+        // A move from rest probes its first tick for the observer's resistance (the
+        // estimate itself is not ported: it keeps the configured one on the nominal motor).
+        let from_rest = self.traj.vel == 0.0 && self.traj.acc == 0.0;
+        (self.probe, self.probe_ticks) = match cmd {
+            Command::Move { target, .. } if from_rest => {
+                let p = duty_jump::PROBE_PERMILLE as f32;
+                (
+                    if i32f32(target.to_bits()) > from {
+                        p
+                    } else {
+                        -p
+                    },
+                    2,
+                )
+            }
+            _ => (0.0, 0),
+        };
         (self.ff_vel, self.ff_acc) = match cmd {
             Command::Sine { frequency, .. } => {
                 let w = i32f32(frequency.to_bits());
@@ -1209,7 +1232,13 @@ impl FloatController {
             lo = lo.max(matched);
             self.impact_side = -1;
         }
-        let mut u = u;
+        let probe = match self.probe_ticks {
+            2 => self.probe,
+            1 => -self.probe,
+            _ => 0.0,
+        };
+        self.probe_ticks = self.probe_ticks.saturating_sub(1);
+        let mut u = u + probe;
         if r.velocity == 0.0
             && r.acceleration == 0.0
             && libm::fabsf(w_gear) > s.brake_min_w
@@ -1251,10 +1280,11 @@ impl FloatController {
             self.integ = (self.integ + inc).clamp(-dl, dl);
         }
 
-        self.traj.drive(uc - u_vel - u_i, u_acc);
+        self.traj.drive(uc - u_vel - u_i - probe, u_acc);
         // A loaded move's drive against the model's: the r̈ feed-forward's scale.
         if !floating {
-            self.move_drive.take(uc - u_vel - u_i - u_defl, u_acc_model);
+            self.move_drive
+                .take(uc - u_vel - u_i - probe - u_defl, u_acc_model);
         }
         let duty = libm::floorf(uc + 0.5).clamp(-1000.0, 1000.0) as i16;
         self.hunt.update(stationary, duty);

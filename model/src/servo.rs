@@ -353,7 +353,7 @@ impl Servo {
 
     /// After [`Servo::tick`], outside the control step: the running move's velocity
     /// feed-forward scale takes the tick's observer velocity, current and gear travel, and
-    /// a raw step's first duty jump gives the observer's resistance
+    /// a raw step's or a move's first duty jump gives the observer's resistance
     /// ([`crate::control::Controller::track_speed`]; only while the bridge drove). The
     /// service calls it after each tick, as it keeps the rest resistance's window.
     pub fn track_speed(&mut self, out: &TickOutput) {

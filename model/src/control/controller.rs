@@ -171,7 +171,7 @@ pub struct Controller {
     move_drive: MoveDrive,
     /// The running move's velocity feed-forward scale.
     speed_scale: SpeedScale,
-    /// The observer's resistance from a raw step's first duty jump.
+    /// The observer's resistance from a raw step's or a move's first duty jump.
     duty_jump: DutyJump,
     /// The catch of a floating link at rest.
     catch: CatchHold,
@@ -279,10 +279,18 @@ impl Controller {
     pub fn command(&mut self, cmd: Command) -> Result<(), ControlError> {
         let ff = FeedForward::for_command(&self.sched, &self.config, &cmd)?;
         let from = self.traj.reference().position.to_bits();
-        // A raw step from rest reads the observer's resistance from its duty jump (design
-        // §11, "The observer's resistance from a raw step's first tick").
-        self.duty_jump
-            .arm(matches!(cmd, Command::Step { .. }) && self.traj.reference().stationary());
+        // A raw step from rest reads the observer's resistance from its duty jump, a move
+        // from rest from a probe on its first tick (design §11, "The observer's resistance
+        // from a command's first tick").
+        let from_rest = self.traj.reference().stationary();
+        match cmd {
+            Command::Move { target, .. } => {
+                self.duty_jump.arm_probe(from_rest, target.to_bits() > from)
+            }
+            _ => self
+                .duty_jump
+                .arm(matches!(cmd, Command::Step { .. }) && from_rest),
+        }
         match cmd {
             // A raw step runs the near-time-optimal profile, planned with the load the
             // integrator holds now.
@@ -375,14 +383,16 @@ impl Controller {
         self.limited = 0;
         self.move_drive = MoveDrive::NEW;
         self.speed_scale = SpeedScale::NEW;
+        // No probe or estimate from a command given before the restart.
+        self.duty_jump = DutyJump::NEW;
     }
 
     /// After [`Controller::step`], outside the control step (the service's per-tick work,
-    /// as the rest resistance's window): a raw step's first duty jump for the observer's
-    /// resistance (design §11, "The observer's resistance from a raw step's first tick"),
-    /// then a loaded move's observer velocity, current and gear travel for its velocity
-    /// feed-forward's scale (design §11, "The velocity feed-forward for the actuator a move
-    /// meets"). `out` is that step's output.
+    /// as the rest resistance's window): a raw step's or a move's first duty jump for the
+    /// observer's resistance (design §11, "The observer's resistance from a command's first
+    /// tick"), then a loaded move's observer velocity, current and gear travel for its
+    /// velocity feed-forward's scale (design §11, "The velocity feed-forward for the
+    /// actuator a move meets"). `out` is that step's output.
     pub fn track_speed(&mut self, out: &Output) {
         let s = &mut self.sched;
         // The current back in sense counts (1024 per A: Q16 A >> 6, exact).
@@ -758,7 +768,8 @@ impl Controller {
         let dead_band = s
             .w_deadband_q16
             .saturating_add(s.w_bias_per_amp.apply(current.saturating_abs()));
-        let mut u = u;
+        let probe = self.duty_jump.probe_step();
+        let mut u = u.saturating_add(probe);
         if r.velocity_q16 == 0
             && r.acceleration_q16 == 0
             && w_gear.saturating_abs() > s.brake_min_w_q16.saturating_add(dead_band)
@@ -814,7 +825,10 @@ impl Controller {
         // What this output spent on accelerating against what the rigid model asked: a
         // raw step brakes for the actuator it met (design §11, "Braking for the actuator
         // the step met").
-        let drive = uc.saturating_sub(u_vel).saturating_sub(u_i);
+        let drive = uc
+            .saturating_sub(u_vel)
+            .saturating_sub(u_i)
+            .saturating_sub(probe);
         self.traj.drive(drive, u_acc);
         // The same for a loaded move, less the deflection's feed-forward: a heavier link or
         // a warm motor scales the r̈ feed-forward of the rest of the move (design §11,

@@ -1,5 +1,5 @@
 //! The back-EMF observer's resistance, read from the duty jump a raw step starts with
-//! (docs/design.md §11, "The observer's resistance from a raw step's first tick").
+//! (docs/design.md §11, "The observer's resistance from a command's first tick").
 //!
 //! The observer reads the gear velocity as ω̂ = d·w_d − n·w_n: d the applied duty (‰), n
 //! the current sense's counts from its zero, w_d = V̂_s/(1000·k̂_e) and w_n =
@@ -22,6 +22,12 @@
 //! (1000101, 1000102) that gave one: 0.94…1.13 of the simulated motor's R/gain, the middle
 //! 90 % within 0.97…1.03 (where the link is held in contact, some of the added torque
 //! accelerates it as well).
+//!
+//! A minimum-jerk move starts with no jump of its own: from rest, its first tick adds a
+//! probe of [`PROBE_PERMILLE`] in the move's direction and its second tick takes as much
+//! away, a doublet that leaves the gear about 70 µrad further and with no speed of its own
+//! to keep. The second tick's duty does not enter the estimate (its current is measured a
+//! tick later).
 //!
 //! It runs after the control step (`Controller::track_speed`, the service's per-tick
 //! work): per tick two stores; on the step's second tick one 64-bit division.
@@ -49,8 +55,13 @@ pub const TOLERANCE_PERMILLE: i64 = 50;
 /// cold to hot) times a current-sense gain of ±5 % (docs/design.md §9), with a margin.
 /// Outside it, something else moved the current (a stalled or a bouncing gear).
 pub const RANGE_PERMILLE: (i64, i64) = (700, 1600);
+/// Duty a move from rest adds to its first tick (and takes away on its second), ‰, in
+/// the move's direction: 150 ‰ is 1.8 V at 12 V; through 11.2 Ω (R ×1.4) at 10.5 V and a
+/// sense 5 % low still 0.13 A, above [`MIN_STEP_COUNTS`]. The gear gains
+/// k_t·Δi·dt/J_g ≈ 0.07 rad/s for a tick.
+pub const PROBE_PERMILLE: i32 = 150;
 
-/// The jump's state across the step's first two ticks.
+/// The jump's state across the command's first two ticks.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct DutyJump {
     /// Ticks until the estimate: 2 at the command, 0 when done or not armed.
@@ -60,6 +71,10 @@ pub struct DutyJump {
     counts_prev: i32,
     /// The duty jump under way, ‰ (set on the step's first tick).
     jump: i32,
+    /// Duty the next control step adds, ‰ Q16, and the one after it: the probe on a
+    /// move's first tick from rest and its negative on the second, else 0.
+    probe_q16: i32,
+    probe_next_q16: i32,
 }
 
 impl DutyJump {
@@ -69,12 +84,37 @@ impl DutyJump {
         duty_prev: 0,
         counts_prev: 0,
         jump: 0,
+        probe_q16: 0,
+        probe_next_q16: 0,
     };
 
     /// A raw step was commanded: the next two ticks may give an estimate, if the reference
     /// stood still before it (`from_rest`: the gear held, its torque balanced).
     pub fn arm(&mut self, from_rest: bool) {
         self.armed = if from_rest { 2 } else { 0 };
+        self.probe_q16 = 0;
+        self.probe_next_q16 = 0;
+    }
+
+    /// A move was commanded, towards positive angles if `up`: from rest, its first tick
+    /// adds [`PROBE_PERMILLE`] for the jump to read, its second takes it away.
+    pub fn arm_probe(&mut self, from_rest: bool, up: bool) {
+        self.arm(from_rest);
+        if from_rest {
+            let p = PROBE_PERMILLE << 16;
+            self.probe_q16 = if up { p } else { -p };
+            self.probe_next_q16 = -self.probe_q16;
+        }
+    }
+
+    /// Duty to add to this control step's output, ‰ Q16: ± the probe on a move's first
+    /// two ticks from rest, else 0. Called once a control step (two loads, two stores).
+    #[inline(always)]
+    pub fn probe_step(&mut self) -> i32 {
+        let p = self.probe_q16;
+        self.probe_q16 = self.probe_next_q16;
+        self.probe_next_q16 = 0;
+        p
     }
 
     /// After each control step: the duty it put out (‰) and the current it measured
@@ -233,6 +273,52 @@ mod tests {
             let (before, after) = jump(R * 1.015, 1.0, offset, hold, dj);
             assert_eq!(estimated(before, after), Some(w_n));
         }
+    }
+
+    #[test]
+    fn a_move_from_rest_is_read_from_its_probe_and_the_probe_taken_back() {
+        let (w_d, w_n, w_step) = configured();
+        let p = PROBE_PERMILLE << 16;
+        for (up, r, hold) in [(true, 6.4, 0.1), (false, 6.8, -0.15), (false, 11.2, 0.2)] {
+            let dj = if up { PROBE_PERMILLE } else { -PROBE_PERMILLE };
+            let (before, after) = jump(r, 1.02, -12.0, hold, f64::from(dj));
+            let mut j = DutyJump::NEW;
+            assert_eq!(j.probe_step(), 0);
+            j.take(before.0, before.1, w_n, w_d, w_step);
+            j.arm_probe(true, up);
+            // First tick: the probe in its duty; second: taken away, the estimate read.
+            assert_eq!(j.probe_step(), if up { p } else { -p });
+            assert_eq!(j.take(after.0, before.1, w_n, w_d, w_step), None);
+            assert_eq!(j.probe_step(), if up { -p } else { p });
+            let w = j
+                .take(before.0, after.1, w_n, w_d, w_step)
+                .expect("an estimate");
+            assert_eq!(j.probe_step(), 0);
+            let truth = r / (KE * 1.02 * COUNTS_PER_A);
+            let w = w as f64 / Q32;
+            assert!(
+                (w / truth - 1.0).abs() < 0.01,
+                "R {r}: {w:e} against {truth:e}"
+            );
+        }
+        // Not from rest: no probe; a raw step: none either.
+        let mut j = DutyJump::NEW;
+        j.arm_probe(false, true);
+        assert_eq!(j.probe_step(), 0);
+        j.arm(true);
+        assert_eq!(j.probe_step(), 0);
+        // The probe is the step's own, whether or not the ticks after it are taken: ±P,
+        // then nothing.
+        let mut j = DutyJump::NEW;
+        j.arm_probe(true, false);
+        assert_eq!([j.probe_step(), j.probe_step(), j.probe_step()], [-p, p, 0]);
+        // A first tick whose duty fell although the probe pushed (the loop braking a
+        // moving gear): no estimate.
+        let mut j = DutyJump::NEW;
+        j.take(-580, -1142, w_n, w_d, w_step);
+        j.arm_probe(true, true);
+        assert_eq!(j.take(-634, -1142, w_n, w_d, w_step), None);
+        assert_eq!(j.take(-690, -1150, w_n, w_d, w_step), None);
     }
 
     #[test]

@@ -6,7 +6,8 @@
 //!
 //! 1. unwrap the link encoder (angle at the centre of the count) and read the current;
 //! 2. gear velocity from the back-EMF observer ω_g = (V − R·i)/k_e (no differentiation;
-//!    its R read from a raw step's first duty jump after the tick, [`duty_jump`]);
+//!    its R read from a raw step's or a move's first duty jump after the tick,
+//!    [`duty_jump`]);
 //! 3. coupling torque: current-based (current and gear velocity through the derivative
 //!    filter, so that the observer's jump on a duty step is no torque), blended with the
 //!    pot's deflection-based estimate by inverse variance;
