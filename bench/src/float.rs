@@ -924,11 +924,21 @@ impl FloatController {
     pub fn command(&mut self, cmd: Command) {
         let s = &self.s;
         let from = self.traj.pos;
-        // A move from rest probes its first tick for the observer's resistance (the
-        // estimate itself is not ported: it keeps the configured one on the nominal motor).
+        // A move from rest, or a loaded raw step through the shaper, probes its first tick
+        // for the observer's resistance (the estimate itself is not ported: it keeps the
+        // configured one on the nominal motor).
         let from_rest = self.traj.vel == 0.0 && self.traj.acc == 0.0;
-        (self.probe, self.probe_ticks) = match cmd {
-            Command::Move { target, .. } if from_rest => {
+        let probed = match cmd {
+            Command::Move { target, .. } => Some(target),
+            Command::Step { target }
+                if s.shaper_ticks != 0 && libm::fabsf(self.integ) >= s.float_load =>
+            {
+                Some(target)
+            }
+            _ => None,
+        };
+        (self.probe, self.probe_ticks) = match probed {
+            Some(target) if from_rest => {
                 let p = duty_jump::PROBE_PERMILLE as f32;
                 (
                     if i32f32(target.to_bits()) > from {

@@ -237,6 +237,48 @@ pub fn cold_motors_moving() -> [Case; 3] {
     ]
 }
 
+/// Loaded raw steps at soft settings (L = 6.1–7.1 mm, through the shaper) on a motor
+/// 28–39 % warmer than configured: the shaper halves the profile's first torque step, the
+/// duty jump was too small to read R, and the links overshot by 15.0, 9.7 and 7.8 %. The
+/// probe on the step's first tick gives the observer the motor's resistance
+/// (docs/design.md §11, "The observer's resistance from a command's first tick"): seed
+/// 1000102 #10, seed 1000105 #111 and seed 1000320 #150, their draws written out in full.
+#[must_use]
+pub fn warm_motors_shaped_steps() -> [Case; 3] {
+    [
+        Case::written(
+            7143,
+            7.292_774_350_643_922e-4,
+            -0.044_320_803,
+            Motion::Step(0.135_920_114_789_389_67),
+            "resistance=x1.3943504,torque-constant=x1.0136893,back-emf=x0.9289332,\
+             gear-inertia=x0.9496067,gear-friction=x2.9904134,supply=10.668095V,\
+             current-offset=2.6916015,current-gain=0.9694685,pot-offset=1.8875271,\
+             link-inertia=x1.8410101",
+        ),
+        Case::written(
+            6093,
+            3.532_634_254_563_434_3e-3,
+            0.063_200_05,
+            Motion::Step(0.284_030_681_068_033_2),
+            "resistance=x1.364124,torque-constant=x0.9844313,back-emf=x1.0472844,\
+             gear-inertia=x0.84236294,gear-friction=x1.3532602,supply=11.636151V,\
+             current-offset=-16.22622,current-gain=0.97897047,pot-offset=0.52230453,\
+             link-inertia=x1.35005",
+        ),
+        Case::written(
+            7002,
+            4.259_195_490_769_478e-3,
+            0.062_528_85,
+            Motion::Step(0.363_985_300_465_390_24),
+            "resistance=x1.2762113,torque-constant=x0.994841,back-emf=x1.0192994,\
+             gear-inertia=x0.84062904,gear-friction=x1.5542088,supply=11.057197V,\
+             current-offset=-2.1337023,current-gain=1.0370898,pot-offset=1.4230502,\
+             link-inertia=x1.4655817",
+        ),
+    ]
+}
+
 /// Raw steps without load on a motor colder or warmer than configured (R ×0.81, ×0.80,
 /// ×1.39) with links ×1.9…×2.9, which the loop left bouncing (count spans 5, 7 and 11 over
 /// the last 500 ms, 3.4–9.3 counts off their target): with the observer's resistance read

@@ -279,17 +279,22 @@ impl Controller {
     pub fn command(&mut self, cmd: Command) -> Result<(), ControlError> {
         let ff = FeedForward::for_command(&self.sched, &self.config, &cmd)?;
         let from = self.traj.reference().position.to_bits();
+        // The integrator holds a load: the link is not floating.
+        let loaded = q32_to_q16(self.integ).saturating_abs() >= self.sched.float_load_q16;
         // A raw step from rest reads the observer's resistance from its duty jump, a move
-        // from rest from a probe on its first tick (design §11, "The observer's resistance
-        // from a command's first tick").
+        // from rest (or a loaded raw step through the shaper, whose first tick carries half
+        // the profile's jump) from a probe on its first tick (design §11, "The observer's
+        // resistance from a command's first tick").
         let from_rest = self.traj.reference().stationary();
         match cmd {
             Command::Move { target, .. } => {
-                self.duty_jump.arm_probe(from_rest, target.to_bits() > from)
+                self.duty_jump.arm_probe(from_rest, target.to_bits() > from);
             }
-            _ => self
-                .duty_jump
-                .arm(matches!(cmd, Command::Step { .. }) && from_rest),
+            Command::Step { target } if self.sched.shaper_ticks != 0 && loaded => {
+                self.duty_jump.arm_probe(from_rest, target.to_bits() > from);
+            }
+            Command::Step { .. } => self.duty_jump.arm(from_rest),
+            _ => self.duty_jump.arm(false),
         }
         match cmd {
             // A raw step runs the near-time-optimal profile, planned with the load the
@@ -308,10 +313,7 @@ impl Controller {
         // ... and its velocity feed-forward's scale, for a loaded link (design §11, "The
         // velocity feed-forward for the actuator a move meets").
         self.speed_scale = match cmd {
-            Command::Move { .. } => SpeedScale::start(
-                self.gear_at(self.link_angle()),
-                q32_to_q16(self.integ).saturating_abs() >= self.sched.float_load_q16,
-            ),
+            Command::Move { .. } => SpeedScale::start(self.gear_at(self.link_angle()), loaded),
             _ => SpeedScale::NEW,
         };
         self.ff = ff;

@@ -23,14 +23,15 @@
 //! 90 % within 0.97…1.03 (where the link is held in contact, some of the added torque
 //! accelerates it as well).
 //!
-//! A minimum-jerk move starts with no jump of its own: from rest, its first tick adds a
-//! probe of [`PROBE_PERMILLE`] in the move's direction and its second tick takes as much
-//! away, a doublet that leaves the gear about 70 µrad further and with no speed of its own
-//! to keep. The second tick's duty does not enter the estimate (its current is measured a
-//! tick later).
+//! A minimum-jerk move starts with no jump of its own (and a raw step through the shaper
+//! with half of one): from rest, its first tick adds a probe of [`PROBE_PERMILLE`] in its
+//! direction and its second tick takes as much away, a doublet that leaves the gear about
+//! 70 µrad further and with no speed of its own to keep. The second tick's duty does not
+//! enter the estimate (its current is measured a tick later). The probe is added in the
+//! control step ([`DutyJump::probe_step`]: two loads and two stores a tick).
 //!
-//! It runs after the control step (`Controller::track_speed`, the service's per-tick
-//! work): per tick two stores; on the step's second tick one 64-bit division.
+//! The estimate runs after the control step (`Controller::track_speed`, the service's
+//! per-tick work): per tick two stores; on the step's second tick one 64-bit division.
 //!
 //! Formats: w_d, w_n and the correction in rad/s per ‰ or per count, Q32 (the schedule's).
 
