@@ -823,8 +823,8 @@ pub struct FloatController {
     limited: f32,
     /// The running move's drive sums and its r̈ feed-forward scale.
     move_drive: FloatMoveDrive,
-    /// The duty jump's probe of a move from rest (as `duty_jump::DutyJump`), ‰, and the
-    /// ticks it has left (2: add it, 1: take it away).
+    /// The duty jump's probe of a probed command from rest (as `duty_jump::DutyJump`), ‰,
+    /// and the ticks it has left (2: add it, 1: take it away).
     probe: f32,
     probe_ticks: u8,
 }

@@ -171,7 +171,7 @@ pub struct Controller {
     move_drive: MoveDrive,
     /// The running move's velocity feed-forward scale.
     speed_scale: SpeedScale,
-    /// The observer's resistance from a raw step's or a move's first duty jump.
+    /// The observer's resistance from a raw step's or a probed command's first duty jump.
     duty_jump: DutyJump,
     /// The catch of a floating link at rest.
     catch: CatchHold,

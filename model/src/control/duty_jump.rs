@@ -1,5 +1,6 @@
-//! The back-EMF observer's resistance, read from the duty jump a raw step starts with
-//! (docs/design.md §11, "The observer's resistance from a command's first tick").
+//! The back-EMF observer's resistance, read from the duty jump a raw step or a probed
+//! command starts with (docs/design.md §11, "The observer's resistance from a command's
+//! first tick").
 //!
 //! The observer reads the gear velocity as ω̂ = d·w_d − n·w_n: d the applied duty (‰), n
 //! the current sense's counts from its zero, w_d = V̂_s/(1000·k̂_e) and w_n =
@@ -56,10 +57,10 @@ pub const TOLERANCE_PERMILLE: i64 = 50;
 /// cold to hot) times a current-sense gain of ±5 % (docs/design.md §9), with a margin.
 /// Outside it, something else moved the current (a stalled or a bouncing gear).
 pub const RANGE_PERMILLE: (i64, i64) = (700, 1600);
-/// Duty a move from rest adds to its first tick (and takes away on its second), ‰, in
-/// the move's direction: 150 ‰ is 1.8 V at 12 V; through 11.2 Ω (R ×1.4) at 10.5 V and a
-/// sense 5 % low still 0.13 A, above [`MIN_STEP_COUNTS`]. The gear gains
-/// k_t·Δi·dt/J_g ≈ 0.07 rad/s for a tick.
+/// Duty a probed command from rest (a move, a loaded raw step through the shaper) adds to
+/// its first tick and takes away on its second, ‰, in its direction: 150 ‰ is 1.8 V at
+/// 12 V; through 11.2 Ω (R ×1.4) at 10.5 V and a sense 5 % low still 0.13 A, above
+/// [`MIN_STEP_COUNTS`]. The gear gains k_t·Δi·dt/J_g ≈ 0.07 rad/s for a tick.
 pub const PROBE_PERMILLE: i32 = 150;
 
 /// The jump's state across the command's first two ticks.
@@ -73,7 +74,7 @@ pub struct DutyJump {
     /// The duty jump under way, ‰ (set on the step's first tick).
     jump: i32,
     /// Duty the next control step adds, ‰ Q16, and the one after it: the probe on a
-    /// move's first tick from rest and its negative on the second, else 0.
+    /// probed command's first tick and its negative on the second, else 0.
     probe_q16: i32,
     probe_next_q16: i32,
 }
@@ -97,8 +98,9 @@ impl DutyJump {
         self.probe_next_q16 = 0;
     }
 
-    /// A move was commanded, towards positive angles if `up`: from rest, its first tick
-    /// adds [`PROBE_PERMILLE`] for the jump to read, its second takes it away.
+    /// A probed command (a move, a loaded raw step through the shaper) towards positive
+    /// angles if `up`: from rest, its first tick adds [`PROBE_PERMILLE`] for the jump to
+    /// read, its second takes it away.
     pub fn arm_probe(&mut self, from_rest: bool, up: bool) {
         self.arm(from_rest);
         if from_rest {
@@ -108,8 +110,8 @@ impl DutyJump {
         }
     }
 
-    /// Duty to add to this control step's output, ‰ Q16: ± the probe on a move's first
-    /// two ticks from rest, else 0. Called once a control step (two loads, two stores).
+    /// Duty to add to this control step's output, ‰ Q16: ± the probe on a probed command's
+    /// first two ticks, else 0. Called once a control step (two loads, two stores).
     #[inline(always)]
     pub fn probe_step(&mut self) -> i32 {
         let p = self.probe_q16;
