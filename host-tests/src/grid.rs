@@ -524,7 +524,7 @@ pub fn light_loads_one_count_off() -> [Case; 3] {
 /// play, 5–7 counts of span over the last 500 ms and 3.6–5.7 counts off their target,
 /// before the catch stopped it there (docs/design.md §11, "Catching the floating link"):
 /// seed 101 #236, seed 102 #32 and #161 and seed 105 #211, written out in full. Two
-/// off-nominal ones were the fifth and sixth; their moves now start otherwise and their
+/// off-nominal ones were the fifth and sixth; their commands now start otherwise and their
 /// links drift on after the catch (docs/design.md §11, "The observer's resistance from a
 /// command's first tick"): seed 1000113 #209 (R ×0.85), its raw step's observer set from
 /// the first duty jump, and seed 1000110 #74 (a current offset of −19.8 counts), a move
