@@ -402,6 +402,7 @@ impl Controller {
         if let Some(w) = self.duty_jump.take(
             i32::from(out.duty),
             counts,
+            self.traj.reference().stationary(),
             s.w_per_count_cfg_q32,
             s.w_per_duty_q32,
             s.w_step_per_count_q32,

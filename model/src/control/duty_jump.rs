@@ -63,11 +63,22 @@ pub const RANGE_PERMILLE: (i64, i64) = (700, 1600);
 /// [`MIN_STEP_COUNTS`]. The gear gains k_t·Δi·dt/J_g ≈ 0.07 rad/s for a tick.
 pub const PROBE_PERMILLE: i32 = 150;
 
+/// Ticks the reference must have stood still, counted from the controller's start (on
+/// enabling) or the last motion, before a command may read an estimate: the gear held,
+/// its torque balanced. A move sent just after enabling, while the hold was still taking
+/// up a load, read R from a gear the beams were accelerating (the emulated board's
+/// power-up check, a 0.3 N·m load hung on at the first driven tick: in 17 runs the move
+/// ended 0.4–3.6 counts off, twice beyond the check's 2; with the rule 16 of 16 at 0.43).
+/// The grids' commands come after 500 ms of hold: their runs are the same with it.
+pub const HELD_TICKS: u8 = 100;
+
 /// The jump's state across the command's first two ticks.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct DutyJump {
     /// Ticks until the estimate: 2 at the command, 0 when done or not armed.
     armed: u8,
+    /// Ticks the reference has stood still (at most [`HELD_TICKS`]).
+    held: u8,
     /// Duty of the tick before (‰) and current counts of the last tick.
     duty_prev: i32,
     counts_prev: i32,
@@ -83,6 +94,7 @@ impl DutyJump {
     /// Not armed.
     pub const NEW: DutyJump = DutyJump {
         armed: 0,
+        held: 0,
         duty_prev: 0,
         counts_prev: 0,
         jump: 0,
@@ -91,9 +103,14 @@ impl DutyJump {
     };
 
     /// A raw step was commanded: the next two ticks may give an estimate, if the reference
-    /// stood still before it (`from_rest`: the gear held, its torque balanced).
+    /// stood still before it (`from_rest`), for [`HELD_TICKS`] at least (the gear held,
+    /// its torque balanced).
     pub fn arm(&mut self, from_rest: bool) {
-        self.armed = if from_rest { 2 } else { 0 };
+        self.armed = if from_rest && self.held >= HELD_TICKS {
+            2
+        } else {
+            0
+        };
         self.probe_q16 = 0;
         self.probe_next_q16 = 0;
     }
@@ -103,7 +120,7 @@ impl DutyJump {
     /// read, its second takes it away.
     pub fn arm_probe(&mut self, from_rest: bool, up: bool) {
         self.arm(from_rest);
-        if from_rest {
+        if self.armed == 2 {
             let p = PROBE_PERMILLE << 16;
             self.probe_q16 = if up { p } else { -p };
             self.probe_next_q16 = -self.probe_q16;
@@ -120,8 +137,8 @@ impl DutyJump {
         p
     }
 
-    /// After each control step: the duty it put out (‰) and the current it measured
-    /// (counts from the sense's zero). Returns the observer's w_n (rad/s per count, Q32)
+    /// After each control step: the duty it put out (‰), the current it measured (counts
+    /// from the sense's zero) and whether the reference stands (`stationary`). Returns the observer's w_n (rad/s per count, Q32)
     /// on the step's second tick: the estimate when it differs from `configured` by more
     /// than [`TOLERANCE_PERMILLE`] and lies in [`RANGE_PERMILLE`], else `configured`;
     /// `None` on every other tick. `w_d`: the schedule's w_d (rad/s per ‰, Q32);
@@ -130,6 +147,7 @@ impl DutyJump {
         &mut self,
         duty: i32,
         counts: i32,
+        stationary: bool,
         configured: i64,
         w_d: i64,
         w_step: i64,
@@ -137,6 +155,11 @@ impl DutyJump {
         let (duty_prev, counts_prev) = (self.duty_prev, self.counts_prev);
         self.duty_prev = duty;
         self.counts_prev = counts;
+        self.held = if stationary {
+            self.held.saturating_add(1).min(HELD_TICKS)
+        } else {
+            0
+        };
         match self.armed {
             2 => {
                 // The step's first tick: its duty is the jump; the current was measured
@@ -234,16 +257,28 @@ mod tests {
         ((d0 as i32, counts(i0)), (d1 as i32, counts(i1)))
     }
 
+    /// A gear held at `(duty, counts)` under a stationary reference for [`HELD_TICKS`].
+    fn held(j: &mut DutyJump, (duty, counts): (i32, i32)) {
+        let (w_d, w_n, w_step) = configured();
+        for _ in 0..HELD_TICKS {
+            assert_eq!(j.take(duty, counts, true, w_n, w_d, w_step), None);
+        }
+    }
+
     /// The step's two ticks through a freshly armed [`DutyJump`].
     fn estimated(before: (i32, i32), after: (i32, i32)) -> Option<i64> {
         let (w_d, w_n, w_step) = configured();
         let mut j = DutyJump::NEW;
-        assert_eq!(j.take(before.0, before.1, w_n, w_d, w_step), None);
+        held(&mut j, before);
         j.arm(true);
         // The step's first tick: its duty is the jump, its current the one before.
-        assert_eq!(j.take(after.0, before.1, w_n, w_d, w_step), None);
-        let w = j.take(after.0, after.1, w_n, w_d, w_step);
-        assert_eq!(j.take(after.0, after.1, w_n, w_d, w_step), None, "once");
+        assert_eq!(j.take(after.0, before.1, true, w_n, w_d, w_step), None);
+        let w = j.take(after.0, after.1, true, w_n, w_d, w_step);
+        assert_eq!(
+            j.take(after.0, after.1, true, w_n, w_d, w_step),
+            None,
+            "once"
+        );
         w
     }
 
@@ -287,14 +322,14 @@ mod tests {
             let (before, after) = jump(r, 1.02, -12.0, hold, f64::from(dj));
             let mut j = DutyJump::NEW;
             assert_eq!(j.probe_step(), 0);
-            j.take(before.0, before.1, w_n, w_d, w_step);
+            held(&mut j, before);
             j.arm_probe(true, up);
             // First tick: the probe in its duty; second: taken away, the estimate read.
             assert_eq!(j.probe_step(), if up { p } else { -p });
-            assert_eq!(j.take(after.0, before.1, w_n, w_d, w_step), None);
+            assert_eq!(j.take(after.0, before.1, true, w_n, w_d, w_step), None);
             assert_eq!(j.probe_step(), if up { -p } else { p });
             let w = j
-                .take(before.0, after.1, w_n, w_d, w_step)
+                .take(before.0, after.1, true, w_n, w_d, w_step)
                 .expect("an estimate");
             assert_eq!(j.probe_step(), 0);
             let truth = r / (KE * 1.02 * COUNTS_PER_A);
@@ -306,6 +341,7 @@ mod tests {
         }
         // Not from rest: no probe; a raw step: none either.
         let mut j = DutyJump::NEW;
+        held(&mut j, (0, 0));
         j.arm_probe(false, true);
         assert_eq!(j.probe_step(), 0);
         j.arm(true);
@@ -313,15 +349,16 @@ mod tests {
         // The probe is the step's own, whether or not the ticks after it are taken: ±P,
         // then nothing.
         let mut j = DutyJump::NEW;
+        held(&mut j, (0, 0));
         j.arm_probe(true, false);
         assert_eq!([j.probe_step(), j.probe_step(), j.probe_step()], [-p, p, 0]);
         // A first tick whose duty fell although the probe pushed (the loop braking a
         // moving gear): no estimate.
         let mut j = DutyJump::NEW;
-        j.take(-580, -1142, w_n, w_d, w_step);
+        held(&mut j, (-580, -1142));
         j.arm_probe(true, true);
-        assert_eq!(j.take(-634, -1142, w_n, w_d, w_step), None);
-        assert_eq!(j.take(-690, -1150, w_n, w_d, w_step), None);
+        assert_eq!(j.take(-634, -1142, true, w_n, w_d, w_step), None);
+        assert_eq!(j.take(-690, -1150, true, w_n, w_d, w_step), None);
     }
 
     #[test]
@@ -333,10 +370,27 @@ mod tests {
         // Armed from a moving reference: nothing.
         let (before, after) = jump(6.4, 1.0, 0.0, 0.0, 400.0);
         let mut j = DutyJump::NEW;
-        j.take(before.0, before.1, w_n, w_d, w_step);
+        held(&mut j, before);
         j.arm(false);
-        assert_eq!(j.take(after.0, before.1, w_n, w_d, w_step), None);
-        assert_eq!(j.take(after.0, after.1, w_n, w_d, w_step), None);
+        assert_eq!(j.take(after.0, before.1, true, w_n, w_d, w_step), None);
+        assert_eq!(j.take(after.0, after.1, true, w_n, w_d, w_step), None);
+        // A reference that has not stood `HELD_TICKS` yet (just enabled, or just stopped):
+        // neither an estimate nor a probe; held long enough, both.
+        let mut j = DutyJump::NEW;
+        held(&mut j, before);
+        j.take(before.0, before.1, false, w_n, w_d, w_step);
+        for _ in 1..HELD_TICKS {
+            j.take(before.0, before.1, true, w_n, w_d, w_step);
+        }
+        j.arm_probe(true, true);
+        assert_eq!(j.probe_step(), 0);
+        assert_eq!(j.take(after.0, before.1, true, w_n, w_d, w_step), None);
+        assert_eq!(j.take(after.0, after.1, true, w_n, w_d, w_step), None);
+        held(&mut j, before);
+        j.arm_probe(true, true);
+        assert_eq!(j.probe_step(), PROBE_PERMILLE << 16);
+        assert_eq!(j.take(after.0, before.1, true, w_n, w_d, w_step), None);
+        assert!(j.take(after.0, after.1, true, w_n, w_d, w_step).is_some());
         // A current step of the other sign than the jump, one too small, one beyond the
         // sense's range, an estimate out of range: the configured observer.
         assert_eq!(estimate(400, -300, 300, w_n, w_d, w_step), w_n);
