@@ -32,7 +32,8 @@
 //! control step ([`DutyJump::probe_step`]: two loads and two stores a tick).
 //!
 //! The estimate runs after the control step (`Controller::track_speed`, the service's
-//! per-tick work): per tick two stores; on the step's second tick one 64-bit division.
+//! per-tick work): per tick three stores and the count of ticks the reference has stood
+//! ([`HELD_TICKS`]); on the step's second tick one 64-bit division.
 //!
 //! Formats: w_d, w_n and the correction in rad/s per ‰ or per count, Q32 (the schedule's).
 
@@ -138,10 +139,10 @@ impl DutyJump {
     }
 
     /// After each control step: the duty it put out (‰), the current it measured (counts
-    /// from the sense's zero) and whether the reference stands (`stationary`). Returns the observer's w_n (rad/s per count, Q32)
-    /// on the step's second tick: the estimate when it differs from `configured` by more
-    /// than [`TOLERANCE_PERMILLE`] and lies in [`RANGE_PERMILLE`], else `configured`;
-    /// `None` on every other tick. `w_d`: the schedule's w_d (rad/s per ‰, Q32);
+    /// from the sense's zero) and whether the reference stands (`stationary`). Returns the
+    /// observer's w_n (rad/s per count, Q32) on the step's second tick: the estimate when
+    /// it differs from `configured` by more than [`TOLERANCE_PERMILLE`] and lies in
+    /// [`RANGE_PERMILLE`], else `configured`; `None` on every other tick. `w_d`: the schedule's w_d (rad/s per ‰, Q32);
     /// `w_step`: k̂_t·dt/(Ĵ_g·counts per A) (rad/s per count, Q32).
     pub fn take(
         &mut self,
