@@ -142,8 +142,9 @@ impl DutyJump {
     /// from the sense's zero) and whether the reference stands (`stationary`). Returns the
     /// observer's w_n (rad/s per count, Q32) on the step's second tick: the estimate when
     /// it differs from `configured` by more than [`TOLERANCE_PERMILLE`] and lies in
-    /// [`RANGE_PERMILLE`], else `configured`; `None` on every other tick. `w_d`: the schedule's w_d (rad/s per ‰, Q32);
-    /// `w_step`: k̂_t·dt/(Ĵ_g·counts per A) (rad/s per count, Q32).
+    /// [`RANGE_PERMILLE`], else `configured`; `None` on every other tick. `w_d`: the
+    /// schedule's w_d (rad/s per ‰, Q32); `w_step`: k̂_t·dt/(Ĵ_g·counts per A) (rad/s per
+    /// count, Q32).
     pub fn take(
         &mut self,
         duty: i32,
