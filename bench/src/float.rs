@@ -827,6 +827,8 @@ pub struct FloatController {
     /// and the ticks it has left (2: add it, 1: take it away).
     probe: f32,
     probe_ticks: u8,
+    /// Ticks the reference has stood still, at most `duty_jump::HELD_TICKS`.
+    held: u8,
 }
 
 /// A move's drive sums and the r̈ feed-forward scale they give (`model::control::move_drive`).
@@ -915,6 +917,7 @@ impl FloatController {
             move_drive: FloatMoveDrive::NEW,
             probe: 0.0,
             probe_ticks: 0,
+            held: 0,
         }
     }
 
@@ -924,33 +927,28 @@ impl FloatController {
     pub fn command(&mut self, cmd: Command) {
         let s = &self.s;
         let from = self.traj.pos;
-        // A move from rest, or a loaded raw step through the shaper, probes its first tick
-        // for the observer's resistance (the estimate itself is not ported: it keeps the
+        // A move, or a loaded raw step through the shaper (`duty_jump::probed_target`),
+        // probes its first tick for the observer's resistance once the reference has stood
+        // `duty_jump::HELD_TICKS` (the estimate itself is not ported: it keeps the
         // configured one on the nominal motor).
-        let from_rest = self.traj.vel == 0.0 && self.traj.acc == 0.0;
-        let probed = match cmd {
-            Command::Move { target, .. } => Some(target),
-            Command::Step { target }
-                if s.shaper_ticks != 0 && libm::fabsf(self.integ) >= s.float_load =>
-            {
-                Some(target)
-            }
-            _ => None,
-        };
-        (self.probe, self.probe_ticks) = match probed {
-            Some(target) if from_rest => {
-                let p = duty_jump::PROBE_PERMILLE as f32;
-                (
-                    if i32f32(target.to_bits()) > from {
-                        p
-                    } else {
-                        -p
-                    },
-                    2,
-                )
-            }
-            _ => (0.0, 0),
-        };
+        let from_rest =
+            self.traj.vel == 0.0 && self.traj.acc == 0.0 && self.held >= duty_jump::HELD_TICKS;
+        let loaded = libm::fabsf(self.integ) >= s.float_load;
+        (self.probe, self.probe_ticks) =
+            match duty_jump::probed_target(&cmd, s.shaper_ticks != 0, loaded) {
+                Some(target) if from_rest => {
+                    let p = duty_jump::PROBE_PERMILLE as f32;
+                    (
+                        if i32f32(target.to_bits()) > from {
+                            p
+                        } else {
+                            -p
+                        },
+                        2,
+                    )
+                }
+                _ => (0.0, 0),
+            };
         (self.ff_vel, self.ff_acc) = match cmd {
             Command::Sine { frequency, .. } => {
                 let w = i32f32(frequency.to_bits());
@@ -1012,6 +1010,8 @@ impl FloatController {
         self.torque_error_lp = 0.0;
         self.limited = 0.0;
         self.move_drive = FloatMoveDrive::NEW;
+        self.probe_ticks = 0;
+        self.held = 0;
     }
 
     fn centred_counts(&self, raw: u16) -> i32 {
@@ -1078,6 +1078,11 @@ impl FloatController {
         let in_count = (-HALF_COUNT..HALF_COUNT).contains(&e_raw);
         let e = if in_count { 0.0 } else { e_raw };
         let stationary = r.velocity == 0.0 && r.acceleration == 0.0;
+        self.held = if stationary {
+            self.held.saturating_add(1).min(duty_jump::HELD_TICKS)
+        } else {
+            0
+        };
         // Gear angle: complementary filter (observer above ω_o, link encoder below); a
         // link held on a wall at a stationary reference at its count's centre.
         let pressed = stationary

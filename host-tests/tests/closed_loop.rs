@@ -185,22 +185,26 @@ fn moves_on_a_cold_motor_see_their_gear_close_on_the_link() {
 #[test]
 fn shaped_steps_on_a_warm_motor_stay_within_the_overshoot() {
     for case in grid::warm_motors_shaped_steps() {
-        let m = sim::run(&case.scenario());
-        println!("{}", sim::describe(&case.to_string(), &m));
+        let m = run_within_the_beams(&case);
         assert!(m.overshoot_pct <= 5.0, "{case}: overshoot");
-        assert!(m.peak_stress_ratio < 1.0, "{case}: beams overloaded");
-        assert!(m.faults.is_empty(), "{case}: fault");
     }
 }
 
 /// Each case keeps the beams below σ_allow and latches no fault.
 fn assert_within_the_beams(cases: &[grid::Case]) {
     for case in cases {
-        let m = sim::run(&case.scenario());
-        println!("{}", sim::describe(&case.to_string(), &m));
-        assert!(m.peak_stress_ratio < 1.0, "{case}: beams overloaded");
-        assert!(m.faults.is_empty(), "{case}: fault");
+        run_within_the_beams(case);
     }
+}
+
+/// Runs `case`, prints it, asserts that it keeps the beams below σ_allow and latches no
+/// fault, and returns its metrics.
+fn run_within_the_beams(case: &grid::Case) -> Metrics {
+    let m = sim::run(&case.scenario());
+    println!("{}", sim::describe(&case.to_string(), &m));
+    assert!(m.peak_stress_ratio < 1.0, "{case}: beams overloaded");
+    assert!(m.faults.is_empty(), "{case}: fault");
+    m
 }
 
 /// A loaded move at a soft setting on a sagging supply (10.8 V) with a back-EMF constant

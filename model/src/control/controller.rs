@@ -6,7 +6,7 @@ use fixed::types::I32F32;
 use super::catch::{CatchHold, Rest};
 use super::config::Config;
 use super::creep::Creep;
-use super::duty_jump::DutyJump;
+use super::duty_jump::{self, DutyJump};
 use super::error::ControlError;
 use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Q16_ONE};
 use super::hunt::Hunt;
@@ -286,15 +286,11 @@ impl Controller {
         // the profile's jump) from a probe on its first tick (design §11, "The observer's
         // resistance from a command's first tick").
         let from_rest = self.traj.reference().stationary();
-        match cmd {
-            Command::Move { target, .. } => {
-                self.duty_jump.arm_probe(from_rest, target.to_bits() > from);
-            }
-            Command::Step { target } if self.sched.shaper_ticks != 0 && loaded => {
-                self.duty_jump.arm_probe(from_rest, target.to_bits() > from);
-            }
-            Command::Step { .. } => self.duty_jump.arm(from_rest),
-            _ => self.duty_jump.arm(false),
+        match duty_jump::probed_target(&cmd, self.sched.shaper_ticks != 0, loaded) {
+            Some(target) => self.duty_jump.arm_probe(from_rest, target.to_bits() > from),
+            None => self
+                .duty_jump
+                .arm(from_rest && matches!(cmd, Command::Step { .. })),
         }
         match cmd {
             // A raw step runs the near-time-optimal profile, planned with the load the
@@ -397,19 +393,20 @@ impl Controller {
     /// actuator a move meets"). `out` is that step's output.
     pub fn track_speed(&mut self, out: &Output) {
         let s = &mut self.sched;
+        let stationary = self.traj.reference().stationary();
         // The current back in sense counts (1024 per A: Q16 A >> 6, exact).
         let counts = (out.current.to_bits() >> (16 + ADC_TO_Q16_SHIFT)) as i32;
         if let Some(w) = self.duty_jump.take(
             i32::from(out.duty),
             counts,
-            self.traj.reference().stationary(),
+            stationary,
             s.w_per_count_cfg_q32,
             s.w_per_duty_q32,
             s.w_step_per_count_q32,
         ) {
             s.w_per_count_q32 = w;
         }
-        if self.traj.reference().stationary() {
+        if stationary {
             self.speed_scale.stop();
         }
         self.speed_scale.take(

@@ -37,7 +37,9 @@
 //!
 //! Formats: w_d, w_n and the correction in rad/s per ‰ or per count, Q32 (the schedule's).
 
+use super::Command;
 use crate::sensors::ADC_MID;
+use crate::Angle;
 
 /// Least duty jump, ‰, that gives an estimate: 100 ‰ is 1.2 V at 12 V, about 0.15 A
 /// through 8 Ω. Measured on the off-nominal grid (seeds 1000101…1000130): 300, 200, 150,
@@ -72,6 +74,18 @@ pub const PROBE_PERMILLE: i32 = 150;
 /// ended 0.4–3.6 counts off, twice beyond the check's 2; with the rule 16 of 16 at 0.43).
 /// The grids' commands come after 500 ms of hold: their runs are the same with it.
 pub const HELD_TICKS: u8 = 100;
+
+/// The target of a command that probes its first tick, `None` for one that does not: a
+/// move, and a raw step through the shaper (`shaped`) whose integrator holds a load
+/// (`loaded`: the link on a wall). The rule for the controller and the bench's f32 port.
+#[must_use]
+pub fn probed_target(cmd: &Command, shaped: bool, loaded: bool) -> Option<Angle> {
+    match *cmd {
+        Command::Move { target, .. } => Some(target),
+        Command::Step { target } if shaped && loaded => Some(target),
+        _ => None,
+    }
+}
 
 /// The jump's state across the command's first two ticks.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -361,6 +375,22 @@ mod tests {
         j.arm_probe(true, true);
         assert_eq!(j.take(-634, -1142, true, w_n, w_d, w_step), None);
         assert_eq!(j.take(-690, -1150, true, w_n, w_d, w_step), None);
+    }
+
+    #[test]
+    fn moves_and_loaded_shaped_steps_probe_and_nothing_else() {
+        let target = Angle::from_int(1);
+        let mv = Command::Move {
+            target,
+            duration_ms: 200,
+        };
+        let step = Command::Step { target };
+        for (shaped, loaded) in [(false, false), (false, true), (true, false), (true, true)] {
+            assert_eq!(probed_target(&mv, shaped, loaded), Some(target));
+            let want = (shaped && loaded).then_some(target);
+            assert_eq!(probed_target(&step, shaped, loaded), want);
+            assert_eq!(probed_target(&Command::Hold, shaped, loaded), None);
+        }
     }
 
     #[test]
