@@ -5,9 +5,9 @@
 
 use std::process::Command;
 
-/// `vsa simulate --json` at 4 mm configured, 5 mm actual, a 0.3 rad 3 Hz sine against
-/// −0.3 N·m, with `extra` arguments: (peak stress / σ_allow, the latched faults).
-fn wrong_clutch(extra: &[&str]) -> (f64, Vec<String>) {
+/// `vsa simulate --json` at 4 mm configured, 5 mm actual, the sine `sine` against the load
+/// `load`, with `extra` arguments: (peak stress / σ_allow, the latched faults).
+fn wrong_clutch(sine: &str, load: &str, extra: &[&str]) -> (f64, Vec<String>) {
     let out = Command::new(env!("CARGO_BIN_EXE_vsa"))
         .args([
             "simulate",
@@ -16,8 +16,8 @@ fn wrong_clutch(extra: &[&str]) -> (f64, Vec<String>) {
             "--plant",
             "clutch=5mm",
             "--sine",
-            "0.3rad:3Hz",
-            "--load=-0.3Nm",
+            sine,
+            &format!("--load={load}"),
             "--json",
         ])
         .args(extra)
@@ -38,17 +38,36 @@ fn wrong_clutch(extra: &[&str]) -> (f64, Vec<String>) {
     (v["peak_stress_ratio"].as_f64().expect("ratio"), faults)
 }
 
+/// Fast sines against and along 0.3 N·m: which of them peaks highest depends on where the
+/// free play's impacts fall, so the hazard is shown over the set, not by one case.
+const SINES: [&str; 4] = ["0.3rad:3Hz", "0.25rad:3.5Hz", "0.25rad:4Hz", "0.15rad:5Hz"];
+const LOADS: [&str; 2] = ["-0.3Nm", "0.3Nm"];
+
 #[test]
 fn a_clutch_tolerance_keeps_a_longer_clutch_within_its_stress() {
     // Without a tolerance the controller plans with τ_cap(4 mm), the beams carry
-    // τ_cap(5 mm) = 0.8·τ_cap(4 mm): beyond σ_allow, and nothing notices.
-    let (none, faults) = wrong_clutch(&[]);
-    assert!(none > 1.0, "{none}");
-    assert!(faults.is_empty(), "{faults:?}");
-    // 0.6 mm (a clutch slid by hand) and 1 mm: within σ_allow, no fault.
-    for tol in ["0.6mm", "1mm"] {
-        let (ratio, faults) = wrong_clutch(&["--clutch-tolerance", tol]);
-        assert!(ratio < 1.0, "{tol}: {ratio}");
-        assert!(faults.is_empty(), "{tol}: {faults:?}");
+    // τ_cap(5 mm) = 0.8·τ_cap(4 mm): some of the sines bend them beyond σ_allow, and
+    // nothing notices. With 0.6 mm (a clutch slid by hand) and 1 mm none does, and no
+    // fault latches.
+    let mut worst = [0.0f64; 3];
+    for sine in SINES {
+        for load in LOADS {
+            for (i, extra) in [
+                &[][..],
+                &["--clutch-tolerance", "0.6mm"],
+                &["--clutch-tolerance", "1mm"],
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                let (ratio, faults) = wrong_clutch(sine, load, extra);
+                println!("{sine} against {load}, {extra:?}: {ratio:.3} σ_allow, faults {faults:?}");
+                assert!(faults.is_empty(), "{sine} {load} {extra:?}: {faults:?}");
+                worst[i] = worst[i].max(ratio);
+            }
+        }
     }
+    assert!(worst[0] > 1.0, "without a tolerance: worst {}", worst[0]);
+    assert!(worst[1] < 1.0, "0.6 mm: worst {}", worst[1]);
+    assert!(worst[2] < 1.0, "1 mm: worst {}", worst[2]);
 }
