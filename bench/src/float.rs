@@ -1078,11 +1078,7 @@ impl FloatController {
         let in_count = (-HALF_COUNT..HALF_COUNT).contains(&e_raw);
         let e = if in_count { 0.0 } else { e_raw };
         let stationary = r.velocity == 0.0 && r.acceleration == 0.0;
-        self.held = if stationary {
-            self.held.saturating_add(1).min(duty_jump::HELD_TICKS)
-        } else {
-            0
-        };
+        self.held = duty_jump::held_after(self.held, stationary);
         // Gear angle: complementary filter (observer above ω_o, link encoder below); a
         // link held on a wall at a stationary reference at its count's centre.
         let pressed = stationary

@@ -75,6 +75,19 @@ pub const PROBE_PERMILLE: i32 = 150;
 /// The grids' commands come after 500 ms of hold: their runs are the same with it.
 pub const HELD_TICKS: u8 = 100;
 
+/// The count of ticks the reference has stood still, `held`, after one more tick: one up
+/// while it stands (at most [`HELD_TICKS`]), 0 once it moves. The rule for the controller
+/// and the bench's f32 port.
+#[must_use]
+#[inline(always)]
+pub fn held_after(held: u8, stationary: bool) -> u8 {
+    if stationary {
+        held.saturating_add(1).min(HELD_TICKS)
+    } else {
+        0
+    }
+}
+
 /// The target of a command that probes its first tick, `None` for one that does not: a
 /// move, and a raw step through the shaper (`shaped`) whose integrator holds a load
 /// (`loaded`: the link on a wall). The rule for the controller and the bench's f32 port.
@@ -171,11 +184,7 @@ impl DutyJump {
         let (duty_prev, counts_prev) = (self.duty_prev, self.counts_prev);
         self.duty_prev = duty;
         self.counts_prev = counts;
-        self.held = if stationary {
-            self.held.saturating_add(1).min(HELD_TICKS)
-        } else {
-            0
-        };
+        self.held = held_after(self.held, stationary);
         match self.armed {
             2 => {
                 // The step's first tick: its duty is the jump; the current was measured
