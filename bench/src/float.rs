@@ -434,6 +434,19 @@ pub struct FloatTrajectory {
 }
 
 impl FloatTrajectory {
+    /// The free-play impact speed's factor for the drive the running raw step met,
+    /// √(a_brake'/a_brake) once its braking is fixed; 1 outside its profile.
+    fn impact(&self) -> f32 {
+        match self.mode {
+            Mode::Dash {
+                brake,
+                brake_scaled,
+                ..
+            } if brake_scaled > 0.0 => libm::sqrtf((brake_scaled / brake).min(1.0)),
+            _ => 1.0,
+        }
+    }
+
     /// `true` while a sine runs.
     #[must_use]
     pub const fn is_sine(&self) -> bool {
@@ -1228,6 +1241,12 @@ impl FloatController {
         }
         let contact_bound = s.contact_torque + s.contact_per_amp * libm::fabsf(current);
         let closing = w_gear - self.w_link;
+        // The impact speed for the drive the command met.
+        let impact_speed = s.impact_speed
+            * self
+                .traj
+                .impact()
+                .min(1.0 / libm::sqrtf(self.move_drive.scale));
         // The back-EMF of a speed most of the way from the gear's to the link's.
         let emf_link = s.duty_per_w * self.w_link;
         let matched =
@@ -1235,11 +1254,11 @@ impl FloatController {
         // Held on a side, the limit stays there while the gear closes that fast.
         let held = self.impact_side;
         self.impact_side = 0;
-        if (tau <= contact_bound || held > 0) && closing > s.impact_speed {
+        if (tau <= contact_bound || held > 0) && closing > impact_speed {
             hi = hi.min(matched);
             self.impact_side = 1;
         }
-        if (tau >= -contact_bound || held < 0) && closing < -s.impact_speed {
+        if (tau >= -contact_bound || held < 0) && closing < -impact_speed {
             lo = lo.max(matched);
             self.impact_side = -1;
         }

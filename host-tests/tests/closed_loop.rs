@@ -507,6 +507,58 @@ fn raw_steps_of_a_heavier_link_brake_in_time_for_the_beams() {
     ]);
 }
 
+/// Links 1.6–3× heavier than configured meet the gear's wall of the free play at an impact
+/// speed set for the configured link: the impact's torque is v·√(k·J), so at the same
+/// speed a heavier link's is larger. The impact speed now takes the drive the command met
+/// (design §11, "Free-play impacts", "The impact speed for the drive a command met"):
+/// off-nominal seeds 102 #249, 118 #118 and 129 #121 (raw steps, 1.139, 1.016 and 1.144
+/// σ_allow before) and 115 #123 (a minimum-jerk move, 1.057), their draws written out.
+#[test]
+fn heavier_links_meet_the_free_play_slower() {
+    assert_within_the_beams(&[
+        grid::Case::written(
+            3915,
+            1.261_964_615_842_744_8e-3,
+            0.102_766_946,
+            grid::Motion::Step(0.504_742_603_456_401_7),
+            "resistance=x0.9113536,torque-constant=x1.0989263,back-emf=x0.9427509,\
+             gear-inertia=x0.85927755,gear-friction=x2.975635,supply=12.3379965V,\
+             current-offset=-18.283285,current-gain=0.9935686,pot-offset=-1.8468766,\
+             link-inertia=x2.786687",
+        ),
+        grid::Case::written(
+            4322,
+            1.090_384_314_448_856e-3,
+            0.147_754_5,
+            grid::Motion::Step(0.560_990_009_668_513_1),
+            "resistance=x1.0461196,torque-constant=x1.0565413,back-emf=x0.91005254,\
+             gear-inertia=x1.0842859,gear-friction=x1.5386701,supply=11.539646V,\
+             current-offset=1.0117109,current-gain=1.0272775,pot-offset=1.0590177,\
+             link-inertia=x2.952811",
+        ),
+        grid::Case::written(
+            2969,
+            3.201_382_524_213_124_3e-3,
+            0.0,
+            grid::Motion::Step(0.167_044_224_542_517_58),
+            "resistance=x0.89685977,torque-constant=x1.0791514,back-emf=x1.0115972,\
+             gear-inertia=x1.1361827,gear-friction=x2.5355687,supply=10.811501V,\
+             current-offset=17.746355,current-gain=1.0206923,pot-offset=-1.4979626,\
+             link-inertia=x2.5144176",
+        ),
+        grid::Case::written(
+            1097,
+            4.517_159_118_189_022_6e-3,
+            -0.087_618_29,
+            grid::Motion::Move(-0.392_008_481_835_505_2, 170),
+            "resistance=x0.8755597,torque-constant=x0.9379156,back-emf=x1.0921787,\
+             gear-inertia=x1.2378235,gear-friction=x2.1831195,supply=11.709015V,\
+             current-offset=4.3072033,current-gain=1.0165609,pot-offset=1.2737283,\
+             link-inertia=x1.5563896",
+        ),
+    ]);
+}
+
 /// Raw steps of off-nominal actuators where the free-play impact limit, holding the gear
 /// back from a link it was closing on too fast, let go of it every other tick
 /// (`grid::impact_limit_letting_go`). Held on its side until the closing speed is back

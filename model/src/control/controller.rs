@@ -8,7 +8,7 @@ use super::config::Config;
 use super::creep::Creep;
 use super::duty_jump::{self, DutyJump};
 use super::error::ControlError;
-use super::gain::{q16_to_q32, q32_to_q16, sat_i32, Q16_ONE};
+use super::gain::{q16_to_q32, q32_to_q16, sat_i32, scale_q16, Q16_ONE};
 use super::hunt::Hunt;
 use super::move_drive::MoveDrive;
 use super::move_duration;
@@ -756,7 +756,15 @@ impl Controller {
             );
 
         // --- limits: current window about the back-EMF, duty limit ---
-        let win = Window::new(s, w_gear, self.w_link, current, tau, self.impact_side);
+        let win = Window::new(
+            s,
+            w_gear,
+            self.w_link,
+            current,
+            tau,
+            self.impact_side,
+            Some((&self.move_drive, &self.traj)),
+        );
         self.impact_side = win.side;
         // Braking governor (raw steps and other jumps of a stationary reference): when
         // the gear approaches the target faster than the available deceleration a_b can
@@ -861,7 +869,7 @@ impl Controller {
         theta_l: i64,
     ) -> Output {
         // The catch's output has its own window; the loop's limit starts afresh after it.
-        let win = Window::new(&self.sched, w_gear, self.w_link, current, tau, 0);
+        let win = Window::new(&self.sched, w_gear, self.w_link, current, tau, 0, None);
         self.impact_side = 0;
         let c = win.clamp(&self.sched, u, tau);
         self.finish(&c, true, tau, tau_i, reference, theta_l, w_gear, current)
@@ -914,9 +922,19 @@ struct Window {
 impl Window {
     /// The window for the gear speed `w_gear`, the link speed `w_link` (rad/s Q16), the
     /// current (A Q16), the torque estimate `tau` (N·m Q16) and the side the impact limit
-    /// held at the last tick (`held`, as `Window::side`).
+    /// held at the last tick (`held`, as `Window::side`), and the running command's drive
+    /// (`drive`: the move's and the raw step's, for the impact speed's factor; none under
+    /// the catch).
     #[inline(always)]
-    fn new(s: &Schedule, w_gear: i32, w_link: i32, current: i32, tau: i32, held: i8) -> Window {
+    fn new(
+        s: &Schedule,
+        w_gear: i32,
+        w_link: i32,
+        current: i32,
+        tau: i32,
+        held: i8,
+        drive: Option<(&MoveDrive, &Trajectory)>,
+    ) -> Window {
         let emf = s.duty_per_w.apply(w_gear);
         let di = s.i_win_duty_q16;
         let dl = s.duty_lim_q16;
@@ -942,8 +960,11 @@ impl Window {
         // §11, "Free-play impacts", "The limit holds its side").
         let closing = w_gear.saturating_sub(w_link);
         let mut side = 0;
-        if closing.saturating_abs() > s.impact_speed_q16 {
-            (hi, lo, side) = impact_limit(s, emf, w_link, current, tau, held, closing, hi, lo);
+        // Tested per tick against the least impact speed a command's factor gives; the
+        // command's own is tested out of line.
+        if closing.saturating_abs() > s.impact_speed_low_q16 {
+            (hi, lo, side) =
+                impact_limit(s, emf, w_link, current, tau, held, closing, hi, lo, drive);
         }
         Window {
             hi,
@@ -995,7 +1016,14 @@ fn impact_limit(
     closing: i32,
     hi: i32,
     lo: i32,
+    drive: Option<(&MoveDrive, &Trajectory)>,
 ) -> (i32, i32, i8) {
+    // The impact speed for the drive the command met (a heavier link than configured,
+    // design §11, "Free-play impacts").
+    let factor = drive.map_or(Q16_ONE, |(m, t)| m.impact_q16().min(t.impact_q16()));
+    if closing.saturating_abs() <= scale_q16(s.impact_speed_q16, factor) {
+        return (hi, lo, 0);
+    }
     let contact_bound = s
         .contact_torque_q16
         .saturating_add(s.contact_per_amp.apply(current.saturating_abs()));

@@ -36,7 +36,7 @@
 //!
 //! Formats: speeds Q16 rad/s, accelerations Q16 rad/s², positions I32F32 rad bits.
 
-use super::gain::{q32_to_q16, sat_i32, Gain, Q16_ONE};
+use super::gain::{q32_to_q16, sat_i32, sqrt_ratio_q16, Gain, Q16_ONE};
 use super::schedule::{Schedule, TICKS_PER_S};
 
 /// Fraction of the current headroom (the current limit less the held load) the profile's
@@ -240,6 +240,22 @@ impl Dash {
         ((i64::from(self.brake) * i64::from(ratio)) >> 16) as i32
     }
 
+    /// The free-play impact speed's factor for the drive the step met: √(a_brake'/a_brake),
+    /// the square root of the ratio its braking was scaled by (Q16; 1 until the braking is
+    /// fixed): an impact's torque is v·√(k·J), so a link that needed g times the model's
+    /// drive takes the same torque at 1/√g of the speed. One 32-bit division; called out
+    /// of line, where the impact limit is reached.
+    #[must_use]
+    pub(crate) fn impact_q16(&self) -> i32 {
+        if self.brake_scaled == 0 || self.brake_scaled >= self.brake {
+            return Q16_ONE;
+        }
+        sqrt_ratio_q16(div_q32_by_q16(
+            i64::from(self.brake_scaled) << 16,
+            self.brake,
+        ))
+    }
+
     /// The step's target.
     #[must_use]
     pub(crate) const fn target(&self) -> i64 {
@@ -336,7 +352,7 @@ impl Dash {
 
 #[cfg(test)]
 mod tests {
-    use super::{div_q32_by_q16, Dash};
+    use super::{div_q32_by_q16, Dash, Q16_ONE};
     use crate::control::{Config, Schedule};
     use crate::design::Design;
     use crate::units::Length;
@@ -395,13 +411,15 @@ mod tests {
 
     /// The braking deceleration is a_b·Σmodel/Σactual of the drive handed in while the step
     /// accelerated (twice the model's drive: half the deceleration), never below a_b/3, and
-    /// a_b where the output needed less than 1.25 times the model's.
+    /// a_b where the output needed less than 1.25 times the model's; the impact speed's
+    /// factor is the square root of that ratio, 1 until the braking is fixed.
     #[test]
     fn braking_follows_the_drive_the_acceleration_took() {
         let cfg = Config::paper(Length::from_int(3));
         let sched = Schedule::new(&Design::paper(), &cfg).unwrap();
         for (factor, want) in [(2.0, 0.5), (5.0, 1.0 / 3.0), (1.2, 1.0), (0.5, 1.0)] {
             let mut d = Dash::plan(&sched, 0, 0, 1i64 << 31, 0).unwrap();
+            assert_eq!(d.impact_q16(), Q16_ONE);
             let mut position = 0;
             while d.braking == 0 {
                 let t = d.advance(position, 0);
@@ -411,6 +429,11 @@ mod tests {
             }
             let got = f64::from(d.brake_scaled) / f64::from(d.brake);
             assert!((got - want).abs() < 1e-3, "×{factor}: {got}");
+            let impact = f64::from(d.impact_q16()) / 65536.0;
+            assert!(
+                (impact / want.sqrt() - 1.0).abs() < 0.007,
+                "×{factor}: {impact}"
+            );
         }
     }
 

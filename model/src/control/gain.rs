@@ -36,6 +36,20 @@ pub(crate) fn scale_q16(x: i32, scale: i32) -> i32 {
     }
 }
 
+/// √r for a ratio r in [1/3, 1] (Q16, clamped to it), Q16: the quadratic
+/// 1 + 0.4713·(r − 1) − 0.2358·(r − 1)² fitted to √r on that range, within 0.7 % of it and
+/// exact at 1, in 32-bit products (the impact limit's factor for the drive a command met,
+/// docs/design.md §11, "Free-play impacts").
+#[inline]
+#[must_use]
+pub(crate) fn sqrt_ratio_q16(r: i32) -> i32 {
+    const B: i32 = 30_888;
+    const C: i32 = -15_456;
+    // −43 691 ≤ d ≤ 0: d² < 1.91e9, B·d > −1.35e9, C·(d²/2¹⁶) > −4.5e8, all within i32.
+    let d = r.clamp(Q16_ONE / 3, Q16_ONE) - Q16_ONE;
+    Q16_ONE + ((B * d) >> 16) + ((C * ((d * d) >> 16)) >> 16)
+}
+
 /// Q32 (I32F32 bits) → Q16, rounding toward −∞, saturating.
 #[inline]
 pub(crate) const fn q32_to_q16(v: i64) -> i32 {
@@ -141,6 +155,20 @@ impl Gain {
 mod tests {
     use super::*;
     use crate::test_rng::xorshift;
+
+    /// Against f64's square root: within 0.7 % on [1/3, 1], exact at 1, clamped outside.
+    #[test]
+    fn sqrt_ratio_is_within_its_fit() {
+        for k in 0..=1000 {
+            let r = 1.0 / 3.0 + f64::from(k) * (2.0 / 3.0) / 1000.0;
+            let got = f64::from(sqrt_ratio_q16((r * 65536.0).round() as i32)) / 65536.0;
+            let want = r.sqrt();
+            assert!((got / want - 1.0).abs() < 0.007, "√{r}: {got} vs {want}");
+        }
+        assert_eq!(sqrt_ratio_q16(Q16_ONE), Q16_ONE);
+        assert_eq!(sqrt_ratio_q16(2 * Q16_ONE), Q16_ONE);
+        assert_eq!(sqrt_ratio_q16(0), sqrt_ratio_q16(Q16_ONE / 3));
+    }
 
     #[test]
     fn gain_round_trip_and_apply() {

@@ -24,7 +24,7 @@
 //! `SUM_STOP` ‰·ticks, an acceleration of seconds at full duty), the scale Q16.
 
 use super::dash::DRIVE_MARGIN_PERCENT;
-use super::gain::{Gain, Q16_ONE};
+use super::gain::{sqrt_ratio_q16, Gain, Q16_ONE};
 
 /// The most the acceleration feed-forward is raised: ×2. Measured on the acceptance grid
 /// (six seeds, docs/design.md §11, "Moves for the actuator they meet"): ×3 saved one more
@@ -123,6 +123,18 @@ impl MoveDrive {
         }
     }
 
+    /// The free-play impact speed's factor for the drive the move met, 1/√scale (Q16; 1
+    /// until the scale is known): an impact's torque is v·√(k·J), so a link that needed
+    /// g times the model's drive takes the same torque at 1/√g of the speed. One 32-bit
+    /// division: 2³¹/scale is 1/scale in Q15 (scale in [2¹⁶, 2¹⁷]).
+    #[must_use]
+    pub fn impact_q16(&self) -> i32 {
+        if self.scale == Q16_ONE {
+            return Q16_ONE;
+        }
+        sqrt_ratio_q16((((1u32 << 31) / self.scale as u32) as i32) << 1)
+    }
+
     /// Σ actual / (m·Σ model), Q16, in [1, `MOVE_SCALE_MAX`], for Σ actual > Σ model ≥
     /// `MIN_MODEL_DRIVE`; 1 where the actual sum is within the margin m. One 32-bit
     /// division (one `UDIV` on Cortex-M3/M4): the quotient in Q8 (m·Σ model/2⁸ ≥ 250, so
@@ -149,7 +161,8 @@ mod tests {
     }
 
     /// The scale is Σactual/(1.25·Σmodel) clamped to [1, 2] (computed here in f64 from the
-    /// ticks handed in), once the model has asked for 200 ‰·ticks; 1 before.
+    /// ticks handed in), once the model has asked for 200 ‰·ticks; 1 before; the impact
+    /// speed's factor 1/√scale.
     #[test]
     fn the_scale_is_the_drive_ratio_over_the_margin() {
         for factor in [0.5, 1.0, 1.2, 1.25, 1.3, 1.6, 2.0, 2.5, 2.6, 4.0, 1.0e3] {
@@ -171,6 +184,12 @@ mod tests {
                     assert!(
                         (got - want).abs() <= 0.01 * want,
                         "×{factor}, dir {dir}, tick {tick}: {got} vs {want}"
+                    );
+                    // The impact speed's factor, 1/√scale.
+                    let impact = f64::from(d.impact_q16()) / 65536.0;
+                    assert!(
+                        (impact * want.sqrt() - 1.0).abs() <= 0.01,
+                        "×{factor}, dir {dir}, tick {tick}: impact {impact}"
                     );
                 }
             }

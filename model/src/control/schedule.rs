@@ -9,7 +9,7 @@ use fixed::types::{I32F32, I64F64};
 use super::config::{Config, Limits, PidGains};
 use super::dash::{self, DashGains};
 use super::error::ControlError;
-use super::gain::{sat_i32, Gain, Q16_ONE};
+use super::gain::{sat_i32, scale_q16, sqrt_ratio_q16, Gain, Q16_ONE};
 use super::move_duration;
 use super::shaper::SHAPER_LEN;
 use super::validate::validate;
@@ -160,8 +160,12 @@ pub struct Schedule {
     /// error, `SUPPLY_TOLERANCE`·V_s/(1000·k_e) rad/s per ‰; integer ‰ in, rad/s Q16 out.
     pub(crate) w_bias_per_duty: Gain,
     /// Gear speed relative to the link above which the current may not drive the gear
-    /// further across the free play (impact torque τ_lim, see `impact_speed`), rad/s Q16.
+    /// further across the free play (impact torque τ_lim, see `impact_speed`), rad/s Q16;
+    /// a command scales it for the drive it met (`Dash::impact_q16`, `MoveDrive::impact_q16`).
     pub(crate) impact_speed_q16: i32,
+    /// The least the impact speed gets for the drive a command met (the factor's floor √⅓,
+    /// `gain::sqrt_ratio_q16`), rad/s Q16: the per-tick test's.
+    pub(crate) impact_speed_low_q16: i32,
     /// |τ̂| above which the beams are taken to be in contact on the side of τ̂'s sign,
     /// N·m Q16 (`CONTACT_TORQUE_NM`).
     pub(crate) contact_torque_q16: i32,
@@ -499,6 +503,10 @@ impl Schedule {
         };
         let move_accel_per_duty =
             to_gain(div(wide(move_duration::MOVE_CURRENT_FRACTION), ff_acc)?)?;
+        let impact_speed_q16 = to_q16(mul(
+            impact_speed(&p, stiffness, tau_lim)?,
+            wide(IMPACT_SPEED_FRACTION),
+        )?)?;
         Ok(Schedule {
             setting,
             stiffness,
@@ -532,10 +540,8 @@ impl Schedule {
                 )?,
                 I64F64::from_num(Q16_ONE),
             )?)?,
-            impact_speed_q16: to_q16(mul(
-                impact_speed(&p, stiffness, tau_lim)?,
-                wide(IMPACT_SPEED_FRACTION),
-            )?)?,
+            impact_speed_q16,
+            impact_speed_low_q16: scale_q16(impact_speed_q16, sqrt_ratio_q16(0)),
             contact_torque_q16: to_q16(wide(CONTACT_TORQUE_NM))?,
             contact_per_amp: to_gain(mul(wide(CONTACT_CURRENT_TOLERANCE), kt)?)?,
             kd: to_gain(wide(gains.kd))?,

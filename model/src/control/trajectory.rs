@@ -29,7 +29,7 @@ use fixed::types::I64F64;
 
 use super::dash::Dash;
 use super::error::ControlError;
-use super::gain::{q32_to_q16, sat_i32, Gain};
+use super::gain::{q32_to_q16, sat_i32, Gain, Q16_ONE};
 use super::schedule::Schedule;
 use super::shaper::Shaper;
 use super::sine::{cos_q30, sin_q30};
@@ -251,6 +251,17 @@ impl Trajectory {
             Mode::Dash(d) => d.target(),
             Mode::Tail { target, .. } => target,
         })
+    }
+
+    /// The free-play impact speed's factor for the drive the running raw step met
+    /// (`Dash::impact_q16`, Q16): 1 outside a raw step's profile.
+    #[must_use]
+    pub fn impact_q16(&self) -> i32 {
+        if let Mode::Dash(d) = &self.mode {
+            d.impact_q16()
+        } else {
+            Q16_ONE
+        }
     }
 
     /// `true` while a sine runs.
