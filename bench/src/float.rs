@@ -651,7 +651,8 @@ impl FloatTrajectory {
                         let margin = dash::DRIVE_MARGIN_PERCENT as f32 / 100.0;
                         *brake_scaled =
                             if *drive_model > 0.0 && *drive_actual > margin * *drive_model {
-                                *brake * (*drive_model / *drive_actual).max(1.0 / max)
+                                let ratio = *drive_model / *drive_actual;
+                                *brake * (ratio * ratio).max(1.0 / max)
                             } else {
                                 *brake
                             };

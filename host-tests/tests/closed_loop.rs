@@ -559,6 +559,69 @@ fn heavier_links_meet_the_free_play_slower() {
     ]);
 }
 
+/// Large raw steps of links 2.3–2.9× heavier than configured: the drive ratio that scales
+/// their braking under-read the link (it lags on the beams while the gear accelerates), so
+/// they braked late and hard, and the loop's braking or the free play's impacts took the
+/// beams past σ_allow. The braking now takes the ratio's square (design §11, "Braking for
+/// the actuator the step met", "The ratio squared"): off-nominal seeds 101 #195, 123 #117,
+/// 202 #72, 220 #104 and 319 #119 (1.188, 1.059, 1.050, 1.021 and 1.013 σ_allow before),
+/// their draws written out.
+#[test]
+fn heavier_links_brake_for_what_the_ratio_under_reads() {
+    assert_within_the_beams(&[
+        grid::Case::written(
+            6457,
+            3.087_901_493_107_478e-4,
+            -0.220_840_3,
+            grid::Motion::Step(-0.489_776_018_230_616_1),
+            "resistance=x0.81316566,torque-constant=x0.9956633,back-emf=x0.95752275,\
+             gear-inertia=x0.9136614,gear-friction=x0.6693452,supply=11.464711V,\
+             current-offset=16.947102,current-gain=1.0120292,pot-offset=0.7785953,\
+             link-inertia=x2.325346",
+        ),
+        grid::Case::written(
+            4880,
+            2.829_405_911_797_112_8e-3,
+            -0.076_128_06,
+            grid::Motion::Step(-0.582_559_534_963_239_9),
+            "resistance=x0.83143675,torque-constant=x1.0769999,back-emf=x0.92960984,\
+             gear-inertia=x0.9086674,gear-friction=x0.70121145,supply=12.236457V,\
+             current-offset=10.763965,current-gain=1.0230504,pot-offset=0.45760852,\
+             link-inertia=x2.6947935",
+        ),
+        grid::Case::written(
+            4570,
+            1.881_986_150_132_057e-3,
+            0.298_914_13,
+            grid::Motion::Step(0.460_415_974_848_480_9),
+            "resistance=x0.8605835,torque-constant=x1.0426077,back-emf=x0.9560916,\
+             gear-inertia=x1.1561991,gear-friction=x2.1248314,supply=11.379928V,\
+             current-offset=4.72008,current-gain=0.9581908,pot-offset=-1.6509924,\
+             link-inertia=x2.8738294",
+        ),
+        grid::Case::written(
+            3453,
+            1.413_953_751_598_880_7e-3,
+            0.295_911_04,
+            grid::Motion::Step(0.243_247_347_064_714_68),
+            "resistance=x1.1828841,torque-constant=x0.92437536,back-emf=x1.0972755,\
+             gear-inertia=x1.2474816,gear-friction=x0.64326334,supply=11.188819V,\
+             current-offset=8.568762,current-gain=0.96409863,pot-offset=1.5056065,\
+             link-inertia=x2.8035347",
+        ),
+        grid::Case::written(
+            4349,
+            1.879_392_526_997_081_7e-3,
+            -0.297_755_06,
+            grid::Motion::Step(-0.357_114_300_304_810_6),
+            "resistance=x0.9739681,torque-constant=x1.0696344,back-emf=x1.0794796,\
+             gear-inertia=x0.9991487,gear-friction=x0.7330436,supply=10.998503V,\
+             current-offset=-14.2973585,current-gain=1.0489972,pot-offset=1.9156809,\
+             link-inertia=x2.5622027",
+        ),
+    ]);
+}
+
 /// Raw steps of off-nominal actuators where the free-play impact limit, holding the gear
 /// back from a link it was closing on too fast, let go of it every other tick
 /// (`grid::impact_limit_letting_go`). Held on its side until the closing speed is back

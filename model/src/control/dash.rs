@@ -25,9 +25,11 @@
 //! the duty limit in the step's direction (an actuator slower than configured), the speed
 //! holds instead of growing: the reference runs no faster than the link follows.
 //!
-//! The braking deceleration is lowered by the ratio of the drive the model asked for to the
-//! drive the output needed while the step accelerated, once the target is within three
-//! braking distances (`BRAKE_SCALE_MAX`): a heavier link or a weaker motor brakes earlier.
+//! The braking deceleration is lowered by the square of the ratio of the drive the model
+//! asked for to the drive the output needed while the step accelerated, once the target is
+//! within three braking distances (`BRAKE_SCALE_MAX`): a heavier link or a weaker motor
+//! brakes earlier. Squared because the ratio under-reads a heavier link: it lags on the
+//! beams while the gear accelerates.
 //!
 //! A small step (shorter than `SMALL_STEP_FREE_PLAYS`·φ_b) under a held load asks, in the
 //! phase the load helps, no more than `CONTACT_FRACTION` of the load's own acceleration of
@@ -126,8 +128,8 @@ pub struct Dash {
     /// both in the step's direction, ‰ Q16.
     drive_actual: i64,
     drive_model: i64,
-    /// The braking deceleration scaled by their ratio, fixed once the target is within
-    /// three braking distances (0 before), rad/s² Q16.
+    /// The braking deceleration scaled by the square of their ratio, fixed once the target
+    /// is within three braking distances (0 before), rad/s² Q16.
     brake_scaled: i32,
 }
 
@@ -222,11 +224,14 @@ impl Dash {
         }
     }
 
-    /// The braking deceleration for the actuator the acceleration met: a_brake·Σmodel/Σactual
-    /// where the output needed more than `DRIVE_MARGIN_PERCENT` of what the model asked (a heavier link, a
-    /// warm motor, a sagging supply), not below a_brake/3; a_brake as planned otherwise (the
-    /// gear friction and the deflection's feed-forward are in the output's part, and a
-    /// nominal actuator's ratio stays within the margin). One 32-bit division, once a step.
+    /// The braking deceleration for the actuator the acceleration met:
+    /// a_brake·(Σmodel/Σactual)² where the output needed more than `DRIVE_MARGIN_PERCENT` of
+    /// what the model asked (a heavier link, a warm motor, a sagging supply), not below
+    /// a_brake/3; a_brake as planned otherwise (the gear friction and the deflection's
+    /// feed-forward are in the output's part, and a nominal actuator's ratio stays within the
+    /// margin). The square, measured on the acceptance grid (docs/design.md §11, "The ratio
+    /// squared"): a heavier link lags on the beams while the gear accelerates, and the ratio
+    /// under-reads it. One 32-bit division, once a step.
     fn brake_for_drive(&self) -> i32 {
         let (a, m) = (self.drive_actual, self.drive_model);
         if m <= 0 || a.saturating_mul(100) <= m.saturating_mul(DRIVE_MARGIN_PERCENT) {
@@ -236,15 +241,17 @@ impl Dash {
         // (≤ 1).
         let sh = (64 - a.leading_zeros()).saturating_sub(15);
         let den = (a >> sh) as i32;
-        let ratio = ((((m >> sh) as i32) << 16) / den).max(Q16_ONE / BRAKE_SCALE_MAX);
+        let ratio = i64::from((((m >> sh) as i32) << 16) / den);
+        let ratio = ((ratio * ratio) >> 16) as i32; // ≤ 1 in Q16
+        let ratio = ratio.max(Q16_ONE / BRAKE_SCALE_MAX);
         ((i64::from(self.brake) * i64::from(ratio)) >> 16) as i32
     }
 
     /// The free-play impact speed's factor for the drive the step met: √(a_brake'/a_brake),
-    /// the square root of the ratio its braking was scaled by (Q16; 1 until the braking is
-    /// fixed): an impact's torque is v·√(k·J), so a link that needed g times the model's
-    /// drive takes the same torque at 1/√g of the speed. One 32-bit division; called out
-    /// of line, where the impact limit is reached.
+    /// the square root of the scale its braking got (Q16; 1 until the braking is fixed), so
+    /// the drive ratio itself: an impact's torque is v·√(k·J), so a link g times as heavy
+    /// takes the same torque at 1/√g of the speed, and the braking's scale stands for 1/g.
+    /// One 32-bit division; called out of line, where the impact limit is reached.
     #[must_use]
     pub(crate) fn impact_q16(&self) -> i32 {
         if self.brake_scaled == 0 || self.brake_scaled >= self.brake {
@@ -409,15 +416,22 @@ mod tests {
         }
     }
 
-    /// The braking deceleration is a_b·Σmodel/Σactual of the drive handed in while the step
-    /// accelerated (twice the model's drive: half the deceleration), never below a_b/3, and
-    /// a_b where the output needed less than 1.25 times the model's; the impact speed's
-    /// factor is the square root of that ratio, 1 until the braking is fixed.
+    /// The braking deceleration is a_b·(Σmodel/Σactual)² of the drive handed in while the
+    /// step accelerated (1.5 times the model's drive: 4/9 of the deceleration), never below
+    /// a_b/3, and a_b where the output needed less than 1.25 times the model's; the impact
+    /// speed's factor is the square root of that scale, 1 until the braking is fixed.
     #[test]
     fn braking_follows_the_drive_the_acceleration_took() {
         let cfg = Config::paper(Length::from_int(3));
         let sched = Schedule::new(&Design::paper(), &cfg).unwrap();
-        for (factor, want) in [(2.0, 0.5), (5.0, 1.0 / 3.0), (1.2, 1.0), (0.5, 1.0)] {
+        for (factor, want) in [
+            (1.5, 4.0 / 9.0),
+            (1.6, 1.0 / 2.56),
+            (2.0, 1.0 / 3.0),
+            (5.0, 1.0 / 3.0),
+            (1.2, 1.0),
+            (0.5, 1.0),
+        ] {
             let mut d = Dash::plan(&sched, 0, 0, 1i64 << 31, 0).unwrap();
             assert_eq!(d.impact_q16(), Q16_ONE);
             let mut position = 0;
