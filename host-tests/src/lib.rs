@@ -5,6 +5,7 @@
 pub mod calibrate;
 pub mod convert;
 pub mod grid;
+pub mod grid_tally;
 pub mod oracle;
 pub mod reference;
 pub mod sim;
