@@ -210,10 +210,14 @@ fn nominal_actuator_grid_booted_under_its_load() {
     sweep("nominal actuator, booted under its load", false, 0, true);
 }
 
-/// Seeds in `VSA_GRID_SEEDS`: comma-separated seeds and inclusive ranges, e.g.
-/// `101-130,201-230` (default `101-130`).
-fn seeds() -> Vec<u64> {
-    let spec = std::env::var("VSA_GRID_SEEDS").unwrap_or_else(|_| "101-130".into());
+/// `VSA_GRID_SEEDS`: comma-separated seeds and inclusive ranges, e.g. `101-130,201-230`
+/// (default `101-130`).
+fn seed_spec() -> String {
+    std::env::var("VSA_GRID_SEEDS").unwrap_or_else(|_| "101-130".into())
+}
+
+/// The seeds of a [`seed_spec`].
+fn seeds(spec: &str) -> Vec<u64> {
     spec.split(',')
         .filter(|p| !p.is_empty())
         .flat_map(|p| {
@@ -235,7 +239,8 @@ fn seeds() -> Vec<u64> {
 #[test]
 #[ignore = "long run: VSA_GRID_SEEDS=101-130 … -- --ignored --nocapture seed_sweep"]
 fn seed_sweep() {
-    let seeds = seeds();
+    let spec = seed_spec();
+    let seeds = seeds(&spec);
     let boot_under_load = booted_under_load(false);
     let threads = std::thread::available_parallelism().map_or(1, usize::from);
     let started = std::time::Instant::now();
@@ -272,11 +277,7 @@ fn seed_sweep() {
         }
         print!(
             "{}",
-            total.report(&format!(
-                "{label}, {} seeds ({})",
-                seeds.len(),
-                std::env::var("VSA_GRID_SEEDS").unwrap_or_else(|_| "101-130".into())
-            ))
+            total.report(&format!("{label}, {} seeds ({spec})", seeds.len()))
         );
     }
     println!("in {:.0} s", started.elapsed().as_secs_f64());
