@@ -1302,7 +1302,9 @@ impl FloatController {
             } else {
                 -s.kp_dt * slip
             }
-        } else if libm::fabsf(e_p) < s.int_band {
+        } else if libm::fabsf(e_p) < s.int_band
+            || (stationary && libm::fabsf(self.w_link) < s.w_deadband)
+        {
             s.ki_dt * soft_i * e_p
         } else {
             0.0

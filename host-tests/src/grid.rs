@@ -35,11 +35,13 @@ pub const COUNT_SPAN_MAX: i32 = 1;
 pub const DUTY_SPAN_MAX: i32 = 20;
 /// Peak beam stress limit, × σ_allow.
 pub const STRESS_MAX_RATIO: f64 = 1.0;
-/// Names of the settling metric and of the raw steps' time-optimal bound in
+/// Names of the settling, raw-step bound and overshoot metrics in
 /// [`Outcome::figures`] (the tests that leave them open name them by these).
 pub const SETTLING: &str = "settling / limit";
 /// See [`SETTLING`].
 pub const RAW_STEP_BOUND: &str = "raw-step settling / T_opt";
+/// See [`SETTLING`].
+pub const OVERSHOOT: &str = "overshoot %";
 
 /// The paper preset's beams (docs/design.md §2.2), SI.
 const BEAMS: f64 = 4.0;
@@ -1104,7 +1106,7 @@ impl Outcome {
             !m.faults.is_empty() && m.peak_stress_before_fault_pa <= m.allowable_stress_pa;
         [
             (
-                "overshoot %",
+                OVERSHOOT,
                 m.overshoot_pct,
                 OVERSHOOT_MAX_PCT,
                 m.overshoot_pct <= OVERSHOOT_MAX_PCT,

@@ -622,6 +622,85 @@ fn heavier_links_brake_for_what_the_ratio_under_reads() {
     ]);
 }
 
+/// Holds of a motor 31–39 % warmer than configured against 0.26–0.30 N·m, with links
+/// ×2.5–2.9: the observer's bias tripped the free-play impact limit every other tick, the
+/// duty alternated between the loop's and the limit's (−559 / −45 ‰), the integrator wound
+/// up and the command that followed was planned for a load three times the real one: 123,
+/// 71, 27 and 353 counts off 2 s after it. The chatter's own jumps now read the resistance
+/// (design §11, "Runs that ended far off"): off-nominal seeds 313 #205, 211 #26, 224 #97
+/// and 223 #178, their draws written out. The last settles after its limit.
+#[test]
+fn a_chattering_hold_reads_the_warm_motors_resistance() {
+    assert_every_limit_but(
+        &[
+            grid::Case::written(
+                1544,
+                4.691233261254704e-3,
+                0.28919724,
+                grid::Motion::Move(0.2628049351557052, 232),
+                "resistance=x1.3643492,torque-constant=x0.9262049,back-emf=x0.99585706,\
+             gear-inertia=x0.85956955,gear-friction=x0.5405369,supply=11.011124V,\
+             current-offset=-11.7132635,current-gain=1.0202794,pot-offset=-1.4510168,\
+             link-inertia=x2.8554616",
+            ),
+            grid::Case::written(
+                1295,
+                3.908864732638844e-3,
+                -0.29801747,
+                grid::Motion::Move(0.4024252986005237, 205),
+                "resistance=x1.3055557,torque-constant=x0.9416509,back-emf=x1.046773,\
+             gear-inertia=x1.0106801,gear-friction=x2.7944677,supply=11.050276V,\
+             current-offset=17.069014,current-gain=0.9559735,pot-offset=-0.6805876,\
+             link-inertia=x0.9939115",
+            ),
+            grid::Case::written(
+                1195,
+                3.919646991805991e-3,
+                -0.261665,
+                grid::Motion::Move(-0.4216570338808323, 183),
+                "resistance=x1.3700333,torque-constant=x0.9351725,back-emf=x0.96910274,\
+             gear-inertia=x1.0769502,gear-friction=x2.0680997,supply=10.613491V,\
+             current-offset=-15.85228,current-gain=1.0269694,pot-offset=0.39955088,\
+             link-inertia=x1.8154228",
+            ),
+            grid::Case::written(
+                1103,
+                3.761304592397018e-3,
+                0.28537622,
+                grid::Motion::Move(0.5871340938502526, 271),
+                "resistance=x1.3904164,torque-constant=x0.9142924,back-emf=x0.9069172,\
+             gear-inertia=x0.9471772,gear-friction=x2.3894813,supply=11.281882V,\
+             current-offset=3.9781938,current-gain=0.9606536,pot-offset=-0.24067143,\
+             link-inertia=x2.9128065",
+            ),
+        ],
+        &[grid::RAW_STEP_BOUND, grid::SETTLING],
+    );
+}
+
+/// A link a warm motor left standing 54 mrad (35 counts) off its target for a second
+/// (seed 1000329 #3: R ×1.39 on 10.5 V, a link ×2.2 against +0.273 N·m): the soft loop's
+/// P term balanced an integrator wound up during a hunt before the step, outside the
+/// integration band. A still link is now integrated at any distance (design §11, "Runs
+/// that ended far off"); it reaches its target and rests, late, after a 33 % overshoot
+/// (its step unprofiled: the wound integrator left no current headroom to plan it with).
+#[test]
+fn a_still_link_far_off_is_integrated_to_its_target() {
+    assert_every_limit_but(
+        &[grid::Case::written(
+            3466,
+            1.694678357632753e-3,
+            0.2730328,
+            grid::Motion::Step(-0.1243290639613523),
+            "resistance=x1.3935441,torque-constant=x0.9791146,back-emf=x1.046749,\
+             gear-inertia=x1.0792463,gear-friction=x1.4505639,supply=10.513193V,\
+             current-offset=-11.416767,current-gain=0.95296323,pot-offset=2.7985144,\
+             link-inertia=x2.2048545",
+        )],
+        &[grid::RAW_STEP_BOUND, grid::SETTLING, grid::OVERSHOOT],
+    );
+}
+
 /// Raw steps of off-nominal actuators where the free-play impact limit, holding the gear
 /// back from a link it was closing on too fast, let go of it every other tick
 /// (`grid::impact_limit_letting_go`). Held on its side until the closing speed is back

@@ -396,10 +396,14 @@ impl Controller {
         let stationary = self.traj.reference().stationary();
         // The current back in sense counts (1024 per A: Q16 A >> 6, exact).
         let counts = (out.current.to_bits() >> (16 + ADC_TO_Q16_SHIFT)) as i32;
+        let quiet = stationary
+            && q32_to_q16(out.link_velocity.to_bits()).saturating_abs() < s.w_deadband_q16
+            && q32_to_q16(self.integ).saturating_abs() >= s.float_load_q16;
         if let Some(w) = self.duty_jump.take(
             i32::from(out.duty),
             counts,
             stationary,
+            quiet,
             s.w_per_count_cfg_q32,
             s.w_per_duty_q32,
             s.w_step_per_count_q32,
@@ -800,6 +804,10 @@ impl Controller {
         // resolution and bias bound (current offset, R error × |i|, supply error × |duty|):
         // a hold that chased the bias of a warm motor, or of a sagging supply, under load
         // hunted (design §11, "The actuator is not the model").
+        // Integral separation only while the link moves: a link that stands still far
+        // from a stationary reference, the P term (soft, or under a hunt's wound-up
+        // integrator) balancing the integrator, stays there unless it integrates (design
+        // §11, "Runs that ended far off"). Tested only beyond the band.
         let inc = if in_count || resting {
             let slip = w_gear
                 .saturating_sub(r.velocity_q16)
@@ -815,12 +823,16 @@ impl Controller {
                 -s.kp_dt.apply_wide(slip)
             }
         } else if !floating {
-            if e.saturating_abs() < s.int_band_q16 {
+            if e.saturating_abs() < s.int_band_q16
+                || (stationary && self.w_link.saturating_abs() < s.w_deadband_q16)
+            {
                 s.ki_dt.apply_wide(e >> (3 * soft))
             } else {
                 0
             }
-        } else if e_g.saturating_abs() < s.int_band_q16 {
+        } else if e_g.saturating_abs() < s.int_band_q16
+            || (stationary && self.w_link.saturating_abs() < s.w_deadband_q16)
+        {
             s.ki_dt.apply_wide(e_g >> (3 * soft))
         } else {
             0 // integral separation: far from the target the P term saturates anyway

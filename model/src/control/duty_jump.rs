@@ -31,6 +31,15 @@
 //! enter the estimate (its current is measured a tick later). The probe is added in the
 //! control step ([`DutyJump::probe_step`]: two loads and two stores a tick).
 //!
+//! A chattering hold. On a motor warmer or colder than configured, a held load can make
+//! the output alternate tick to tick between the loop's duty and the free-play impact
+//! limit's, which the observer's bias (R − R̂)·i/k̂_e trips on every other tick (a hold
+//! at R ×1.36 against 0.29 N·m: −559 / −45 ‰ for 400 ms, docs/design.md §11, "Runs that
+//! ended far off"). While the reference stands, the link is still and the integrator holds
+//! a load, two jumps of at least [`MIN_JUMP_PERMILLE`] of opposite signs in a row arm the
+//! same estimate from the second: the gear is held by the load, and its speed changes
+//! within the tick by what the jump's current gives it.
+//!
 //! The estimate runs after the control step (`Controller::track_speed`, the service's
 //! per-tick work): per tick three stores and the count of ticks the reference has stood
 //! ([`HELD_TICKS`]); on the step's second tick one 64-bit division.
@@ -166,17 +175,21 @@ impl DutyJump {
     }
 
     /// After each control step: the duty it put out (‰), the current it measured (counts
-    /// from the sense's zero) and whether the reference stands (`stationary`). Returns the
+    /// from the sense's zero), whether the reference stands (`stationary`) and whether a
+    /// held load keeps the gear still under it (`quiet`: a still link, the integrator
+    /// holding a load; a chattering hold then gives an estimate too). Returns the
     /// observer's w_n (rad/s per count, Q32) on the step's second tick: the estimate when
     /// it differs from `configured` by more than [`TOLERANCE_PERMILLE`] and lies in
     /// [`RANGE_PERMILLE`], else `configured`; `None` on every other tick. `w_d`: the
     /// schedule's w_d (rad/s per ‰, Q32); `w_step`: k̂_t·dt/(Ĵ_g·counts per A) (rad/s per
     /// count, Q32).
+    #[allow(clippy::too_many_arguments)]
     pub fn take(
         &mut self,
         duty: i32,
         counts: i32,
         stationary: bool,
+        quiet: bool,
         configured: i64,
         w_d: i64,
         w_step: i64,
@@ -199,16 +212,31 @@ impl DutyJump {
             }
             1 => {
                 self.armed = 0;
-                Some(estimate(
+                let w = estimate(
                     self.jump,
                     counts.saturating_sub(counts_prev),
                     counts,
                     configured,
                     w_d,
                     w_step,
-                ))
+                );
+                self.jump = duty.saturating_sub(duty_prev);
+                Some(w)
             }
-            _ => None,
+            _ => {
+                // A held load chattering tick to tick (two jumps of either sign in a row,
+                // the gear held by the load between them): each jump is read like a
+                // command's first tick (module docs, "A chattering hold").
+                let jump = duty.saturating_sub(duty_prev);
+                let chatter = (jump > 0) != (self.jump > 0)
+                    && self.jump.saturating_abs() >= MIN_JUMP_PERMILLE
+                    && jump.saturating_abs() >= MIN_JUMP_PERMILLE;
+                if quiet && self.held >= HELD_TICKS && chatter {
+                    self.armed = 1;
+                }
+                self.jump = jump;
+                None
+            }
         }
     }
 }
@@ -286,8 +314,18 @@ mod tests {
     fn held(j: &mut DutyJump, (duty, counts): (i32, i32)) {
         let (w_d, w_n, w_step) = configured();
         for _ in 0..HELD_TICKS {
-            assert_eq!(j.take(duty, counts, true, w_n, w_d, w_step), None);
+            assert_eq!(j.take(duty, counts, true, false, w_n, w_d, w_step), None);
         }
+    }
+
+    /// A command's first two ticks after `before`: the duty jumps to `after`'s, its
+    /// current a tick late. What `take` returns on each.
+    fn step_ticks(j: &mut DutyJump, before: (i32, i32), after: (i32, i32)) -> [Option<i64>; 2] {
+        let (w_d, w_n, w_step) = configured();
+        [
+            j.take(after.0, before.1, true, false, w_n, w_d, w_step),
+            j.take(after.0, after.1, true, false, w_n, w_d, w_step),
+        ]
     }
 
     /// The step's two ticks through a freshly armed [`DutyJump`].
@@ -297,10 +335,13 @@ mod tests {
         held(&mut j, before);
         j.arm(true);
         // The step's first tick: its duty is the jump, its current the one before.
-        assert_eq!(j.take(after.0, before.1, true, w_n, w_d, w_step), None);
-        let w = j.take(after.0, after.1, true, w_n, w_d, w_step);
         assert_eq!(
-            j.take(after.0, after.1, true, w_n, w_d, w_step),
+            j.take(after.0, before.1, true, false, w_n, w_d, w_step),
+            None
+        );
+        let w = j.take(after.0, after.1, true, false, w_n, w_d, w_step);
+        assert_eq!(
+            j.take(after.0, after.1, true, false, w_n, w_d, w_step),
             None,
             "once"
         );
@@ -323,6 +364,47 @@ mod tests {
                 (w / truth - 1.0).abs() < 0.01,
                 "R {r}, gain {gain}: {w:e} against {truth:e}"
             );
+        }
+    }
+
+    /// A hold at `before` that chatters between it and `after` for six ticks, the
+    /// current a tick late: the estimates it gives.
+    fn chattered(before: (i32, i32), after: (i32, i32), quiet: bool) -> Vec<i64> {
+        let (w_d, w_n, w_step) = configured();
+        let mut j = DutyJump::NEW;
+        held(&mut j, before);
+        let mut out = Vec::new();
+        let ticks = [after, before, after, before, after, before];
+        let mut counts = before.1;
+        for (duty, next_counts) in ticks {
+            out.extend(j.take(duty, counts, true, quiet, w_n, w_d, w_step));
+            counts = next_counts;
+        }
+        out
+    }
+
+    #[test]
+    fn a_chattering_hold_is_read_from_its_jumps() {
+        // R ×1.4 against 0.29 N·m, the sense 2 % high and 12 counts off, the duty
+        // alternating 500 ‰ below the hold and back (a warm motor's hold between the loop
+        // and the impact limit): every jump after the first reads R.
+        let (before, after) = jump(11.2, 1.02, -12.0, 0.29, -500.0);
+        let truth = 11.2 / (KE * 1.02 * COUNTS_PER_A);
+        let w = chattered(before, after, true);
+        assert_eq!(w.len(), 2, "{w:?}");
+        for w in w {
+            let w = w as f64 / Q32;
+            assert!((w / truth - 1.0).abs() < 0.03, "{w:e} against {truth:e}");
+        }
+        // Not while the link moves or floats.
+        assert!(chattered(before, after, false).is_empty());
+        // Nor from jumps one way only (a load taken up, not a chatter).
+        let (w_d, w_n, w_step) = configured();
+        let mut j = DutyJump::NEW;
+        held(&mut j, before);
+        for k in 1..6 {
+            let duty = before.0 - 150 * k;
+            assert_eq!(j.take(duty, before.1, true, true, w_n, w_d, w_step), None);
         }
     }
 
@@ -351,10 +433,13 @@ mod tests {
             j.arm_probe(true, up);
             // First tick: the probe in its duty; second: taken away, the estimate read.
             assert_eq!(j.probe_step(), if up { p } else { -p });
-            assert_eq!(j.take(after.0, before.1, true, w_n, w_d, w_step), None);
+            assert_eq!(
+                j.take(after.0, before.1, true, false, w_n, w_d, w_step),
+                None
+            );
             assert_eq!(j.probe_step(), if up { -p } else { p });
             let w = j
-                .take(before.0, after.1, true, w_n, w_d, w_step)
+                .take(before.0, after.1, true, false, w_n, w_d, w_step)
                 .expect("an estimate");
             assert_eq!(j.probe_step(), 0);
             let truth = r / (KE * 1.02 * COUNTS_PER_A);
@@ -382,8 +467,8 @@ mod tests {
         let mut j = DutyJump::NEW;
         held(&mut j, (-580, -1142));
         j.arm_probe(true, true);
-        assert_eq!(j.take(-634, -1142, true, w_n, w_d, w_step), None);
-        assert_eq!(j.take(-690, -1150, true, w_n, w_d, w_step), None);
+        assert_eq!(j.take(-634, -1142, true, false, w_n, w_d, w_step), None);
+        assert_eq!(j.take(-690, -1150, true, false, w_n, w_d, w_step), None);
     }
 
     #[test]
@@ -413,25 +498,28 @@ mod tests {
         let mut j = DutyJump::NEW;
         held(&mut j, before);
         j.arm(false);
-        assert_eq!(j.take(after.0, before.1, true, w_n, w_d, w_step), None);
-        assert_eq!(j.take(after.0, after.1, true, w_n, w_d, w_step), None);
+        assert_eq!(step_ticks(&mut j, before, after), [None, None]);
         // A reference that has not stood `HELD_TICKS` yet (just enabled, or just stopped):
         // neither an estimate nor a probe; held long enough, both.
         let mut j = DutyJump::NEW;
         held(&mut j, before);
-        j.take(before.0, before.1, false, w_n, w_d, w_step);
+        j.take(before.0, before.1, false, false, w_n, w_d, w_step);
         for _ in 1..HELD_TICKS {
-            j.take(before.0, before.1, true, w_n, w_d, w_step);
+            j.take(before.0, before.1, true, false, w_n, w_d, w_step);
         }
         j.arm_probe(true, true);
         assert_eq!(j.probe_step(), 0);
-        assert_eq!(j.take(after.0, before.1, true, w_n, w_d, w_step), None);
-        assert_eq!(j.take(after.0, after.1, true, w_n, w_d, w_step), None);
+        assert_eq!(step_ticks(&mut j, before, after), [None, None]);
         held(&mut j, before);
         j.arm_probe(true, true);
         assert_eq!(j.probe_step(), PROBE_PERMILLE << 16);
-        assert_eq!(j.take(after.0, before.1, true, w_n, w_d, w_step), None);
-        assert!(j.take(after.0, after.1, true, w_n, w_d, w_step).is_some());
+        assert_eq!(
+            j.take(after.0, before.1, true, false, w_n, w_d, w_step),
+            None
+        );
+        assert!(j
+            .take(after.0, after.1, true, false, w_n, w_d, w_step)
+            .is_some());
         // A current step of the other sign than the jump, one too small, one beyond the
         // sense's range, an estimate out of range: the configured observer.
         assert_eq!(estimate(400, -300, 300, w_n, w_d, w_step), w_n);
