@@ -682,7 +682,7 @@ fn a_chattering_hold_reads_the_warm_motors_resistance() {
 /// (seed 1000329 #3: R ×1.39 on 10.5 V, a link ×2.2 against +0.273 N·m): the soft loop's
 /// P term balanced an integrator wound up during a hunt before the step, outside the
 /// integration band. A still link is now integrated at any distance (design §11, "Runs
-/// that ended far off"); it reaches its target and rests, late, after a 33 % overshoot
+/// that ended far off"); it reaches its target and rests, late, after a 36 % overshoot
 /// (its step unprofiled: the wound integrator left no current headroom to plan it with).
 #[test]
 fn a_still_link_far_off_is_integrated_to_its_target() {
