@@ -335,11 +335,8 @@ mod tests {
         held(&mut j, before);
         j.arm(true);
         // The step's first tick: its duty is the jump, its current the one before.
-        assert_eq!(
-            j.take(after.0, before.1, true, false, w_n, w_d, w_step),
-            None
-        );
-        let w = j.take(after.0, after.1, true, false, w_n, w_d, w_step);
+        let [first, w] = step_ticks(&mut j, before, after);
+        assert_eq!(first, None);
         assert_eq!(
             j.take(after.0, after.1, true, false, w_n, w_d, w_step),
             None,
