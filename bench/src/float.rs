@@ -37,7 +37,7 @@
 
 use core::f32::consts::PI;
 
-use model::control::creep::{Creep, CREEP_SPEED};
+use model::control::creep::{Creep, CREEP_SPEED, PRESS_WIND_SHIFT};
 use model::control::hunt::Hunt;
 use model::control::schedule::{
     CONTACT_CURRENT_TOLERANCE, CONTACT_TORQUE_NM, COULOMB_RAMP_RAD_S,
@@ -1305,7 +1305,13 @@ impl FloatController {
         } else if libm::fabsf(e_p) < s.int_band
             || (stationary && libm::fabsf(self.w_link) < s.w_deadband)
         {
-            s.ki_dt * soft_i * e_p
+            // The press wound in beyond a count, for a loaded link (`creep::wind`).
+            let wind = if !floating && e_abs > 2.0 * HALF_COUNT {
+                u_creep / (1u32 << PRESS_WIND_SHIFT) as f32
+            } else {
+                0.0
+            };
+            s.ki_dt * soft_i * e_p + wind
         } else {
             0.0
         };

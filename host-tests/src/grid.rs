@@ -597,6 +597,48 @@ pub fn light_loads_settling_late() -> [Case; 3] {
     ]
 }
 
+/// Three off-nominal grid cases whose gear's friction is 2.1–2.8 times the configured one
+/// (L = 6.8–7.7 mm, loads of 0.14–0.22 N·m): the load held the link still on a wall a
+/// count or two off its target while the integrator wound past the gear's friction, and
+/// they settled at 2.93 / 1.66 / 1.65 times their limit before the press wound the hold
+/// (docs/design.md §11, "The press wound into the hold"): seed 1000201 #158, seed 1000102 #3
+/// and seed 1000307 #225, written out in full.
+#[must_use]
+pub fn stiff_gears_held_off() -> [Case; 3] {
+    [
+        Case::written(
+            7710,
+            1.554_101_267_225_893_5e-3,
+            -0.140_154_44,
+            Motion::Move(-0.400_853_992_327_953_5, 271),
+            "resistance=x1.3048753,torque-constant=x1.0229774,back-emf=x1.0350142,\
+             gear-inertia=x0.8512547,gear-friction=x2.6286592,supply=11.995821V,\
+             current-offset=4.154298,current-gain=1.0226519,pot-offset=-1.1134993,\
+             link-inertia=x0.6383623",
+        ),
+        Case::written(
+            6802,
+            1.120_549_231_521_193_3e-3,
+            0.155_091_23,
+            Motion::Step(0.222_083_473_417_535_84),
+            "resistance=x1.1934907,torque-constant=x0.93241954,back-emf=x1.0839561,\
+             gear-inertia=x1.1959531,gear-friction=x2.7517276,supply=12.080033V,\
+             current-offset=-2.3583095,current-gain=1.0148888,pot-offset=-1.2737294,\
+             link-inertia=x0.7862201",
+        ),
+        Case::written(
+            7376,
+            2.563_503_675_079_608_5e-3,
+            -0.215_358_36,
+            Motion::Move(-0.253_598_797_348_814_13, 287),
+            "resistance=x1.1112095,torque-constant=x0.95030046,back-emf=x0.9002614,\
+             gear-inertia=x1.0287838,gear-friction=x2.0909913,supply=12.594045V,\
+             current-offset=15.788758,current-gain=1.0138022,pot-offset=1.7800845,\
+             link-inertia=x2.1270723",
+        ),
+    ]
+}
+
 /// Three nominal grid cases of raw steps at soft settings (L = 7.6–7.9 mm) under light
 /// loads, whose link rang on the beams after the profile's torque steps and settled at
 /// 2.01 / 1.30 / 1.34 times their limit before the shaper (docs/design.md §11, "Raw steps

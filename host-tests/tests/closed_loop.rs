@@ -345,6 +345,15 @@ fn a_light_load_still_off_its_count_is_pushed_in_within_the_settling_limit() {
     assert_every_limit_but_the_time_bound(&grid::light_loads_settling_late());
 }
 
+/// A link held off its target by a gear whose friction is two to three times the
+/// configured one: the press winds the hold while the link stands (docs/design.md §11, "The
+/// press wound into the hold"). The three off-nominal grid cases of
+/// `grid::stiff_gears_held_off` meet every limit but the raw steps' time-optimal bound.
+#[test]
+fn a_link_held_off_by_a_stiff_gear_is_pressed_in_within_the_settling_limit() {
+    assert_every_limit_but_the_time_bound(&grid::stiff_gears_held_off());
+}
+
 /// Raw steps at soft settings go through the shaper: the three nominal grid cases of
 /// `grid::soft_raw_steps_ringing` meet every limit but the raw steps' time-optimal bound.
 #[test]

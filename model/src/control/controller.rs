@@ -412,12 +412,38 @@ impl Controller {
         }
         if stationary {
             self.speed_scale.stop();
+            self.wind_press();
         }
         self.speed_scale.take(
             q32_to_q16(out.gear_velocity.to_bits()),
             q32_to_q16(out.current.to_bits()),
             self.gear_at(out.link_angle.to_bits()),
         );
+    }
+
+    /// The press of a loaded link that stands more than a count off a stationary
+    /// reference, wound into the hold's integrator (`Creep::wind`; docs/design.md §11,
+    /// "The press wound into the hold"): the same conditions as the step's `pressed_off`,
+    /// read after the tick, so that it costs the control step nothing.
+    fn wind_press(&mut self) {
+        let s = &self.sched;
+        let e_q32 = self
+            .traj
+            .reference()
+            .position
+            .to_bits()
+            .saturating_sub(self.link_angle());
+        let pressed_beyond = e_q32.saturating_abs() > 2 * ENCODER_HALF_COUNT_Q32
+            && q32_to_q16(self.integ).saturating_abs() >= s.float_load_q16
+            && self.w_link.saturating_abs() < s.w_deadband_q16
+            && !self.hunt.hunting();
+        let w = self
+            .creep
+            .wind(pressed_beyond, e_q32 > 0, s.coulomb_duty_q16);
+        if w != 0 {
+            let lim = q16_to_q32(s.duty_lim_q16);
+            self.integ = self.integ.saturating_add(w).clamp(-lim, lim);
+        }
     }
 
     /// The link angle at the centre of its measured (unwrapped) count, I32F32 rad.

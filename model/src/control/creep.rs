@@ -41,6 +41,15 @@ pub const CREEP_BOOST_MAX_PERMILLE: i32 = 8;
 /// 16 swung the duty at rest more and latched more faults, 48 settled fewer runs,
 /// docs/design.md §11, "A light load one count off").
 pub const PRESS_STILL_TICKS: u16 = 32;
+/// While it presses, the hold's integrator winds a 2^−`PRESS_WIND_SHIFT` part of the
+/// press's duty more each tick, towards the target (the friction's duty in 32 ticks).
+/// The gear's true friction may be three times the configured one (docs/design.md §9),
+/// and a hold under a load sits anywhere within ±f of the load: breaking away towards
+/// the target may take 2·f more than it, which K_i·e alone wound in hundreds of ms. Wound
+/// into the integrator, not added to the press: once the link is in its count the
+/// position term and the press drop out, and what the integrator keeps holds the gear
+/// there (docs/design.md §11, "The press wound into the hold").
+pub const PRESS_WIND_SHIFT: u32 = 5;
 
 /// `CREEP_SPEED` in rad/s Q16.
 pub(crate) const CREEP_SPEED_Q16: i32 = (CREEP_SPEED.to_bits() >> 16) as i32;
@@ -150,6 +159,18 @@ impl Creep {
         }
     }
 
+    /// What the press winds into the hold's integrator this tick, ‰ Q32: a
+    /// 2^−`PRESS_WIND_SHIFT` part of its duty (`coulomb_duty_q16`, ‰ Q16) while it presses
+    /// a loaded link that stands more than a count off its target (`pressed_beyond`: as
+    /// `pressed_off` of [`Creep::press`], the integrator above `FLOAT_LOAD_NM`), else 0. A
+    /// link in the neighbouring count is within the settling band, and a wound press threw
+    /// it past the target.
+    #[must_use]
+    pub fn wind(&self, pressed_beyond: bool, positive: bool, coulomb_duty_q16: i32) -> i64 {
+        i64::from(coulomb_duty_q16.saturating_mul(i32::from(self.press(pressed_beyond, positive))))
+            << (16 - PRESS_WIND_SHIFT)
+    }
+
     /// One tick of a stationary reference (a moving one resets the state to
     /// [`Creep::NEW`]): the link encoder's count change, whether the rest hold holds,
     /// whether the link is in the reference's count, and of the error r − θ_l to the
@@ -229,6 +250,25 @@ mod tests {
         // A count change: the wait starts again.
         assert_eq!(c.step(1, false, false, true, -COUNT, ff, 7 << 16), (0, 0));
         assert_eq!(c.press(true, false), 0);
+    }
+
+    #[test]
+    fn the_press_is_wound_into_the_hold_once_the_link_stands() {
+        let mut c = Creep::NEW;
+        // 16 ‰ of friction: half a ‰ a tick (2⁻⁵) in Q32, towards the target, once the
+        // press is on; nothing before, nor for a link that is not pressed beyond a count.
+        let half_permille_q32 = 1_i64 << 31;
+        for _ in 1..PRESS_STILL_TICKS {
+            tick(&mut c, 0, false, false, 2 * COUNT);
+            assert_eq!(c.wind(true, true, 16 << 16), 0);
+        }
+        tick(&mut c, 0, false, false, 2 * COUNT);
+        assert_eq!(c.wind(true, true, 16 << 16), half_permille_q32);
+        assert_eq!(c.wind(true, false, 16 << 16), -half_permille_q32);
+        assert_eq!(c.wind(false, true, 16 << 16), 0);
+        // A count change: the wait starts again.
+        tick(&mut c, 1, false, false, 2 * COUNT);
+        assert_eq!(c.wind(true, true, 16 << 16), 0);
     }
 
     #[test]
