@@ -412,7 +412,7 @@ impl Controller {
         }
         if stationary {
             self.speed_scale.stop();
-            self.wind_press();
+            self.wind_press(quiet);
         }
         self.speed_scale.take(
             q32_to_q16(out.gear_velocity.to_bits()),
@@ -424,8 +424,9 @@ impl Controller {
     /// The press of a loaded link that stands more than a count off a stationary
     /// reference, wound into the hold's integrator (`Creep::wind`; docs/design.md §11,
     /// "The press wound into the hold"): the same conditions as the step's `pressed_off`,
-    /// read after the tick, so that it costs the control step nothing.
-    fn wind_press(&mut self) {
+    /// read after the tick, so that it costs the control step nothing. `quiet`: the still
+    /// link under a held load that the chattering hold's estimate reads too.
+    fn wind_press(&mut self, quiet: bool) {
         let s = &self.sched;
         let e_q32 = self
             .traj
@@ -433,10 +434,8 @@ impl Controller {
             .position
             .to_bits()
             .saturating_sub(self.link_angle());
-        let pressed_beyond = e_q32.saturating_abs() > 2 * ENCODER_HALF_COUNT_Q32
-            && q32_to_q16(self.integ).saturating_abs() >= s.float_load_q16
-            && self.w_link.saturating_abs() < s.w_deadband_q16
-            && !self.hunt.hunting();
+        let pressed_beyond =
+            quiet && !self.hunt.hunting() && e_q32.saturating_abs() > 2 * ENCODER_HALF_COUNT_Q32;
         let w = self
             .creep
             .wind(pressed_beyond, e_q32 > 0, s.coulomb_duty_q16);
