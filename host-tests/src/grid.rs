@@ -639,6 +639,48 @@ pub fn stiff_gears_held_off() -> [Case; 3] {
     ]
 }
 
+/// Three off-nominal grid cases of loaded raw steps (L = 1.3–5.6 mm) on motors whose
+/// back-EMF constant is 0.91–0.94 of the configured one: the observer read the gear 6–9 %
+/// slow, the damping was short by as much, and they overshot 9.0 / 7.2 / 5.2 % before the
+/// damping took the observer's speed for the motor the step met (docs/design.md §11, "The
+/// damping for the motor a raw step meets"): seed 1000203 #129, seed 1000125 #209 and
+/// seed 1000316 #149, written out in full.
+#[must_use]
+pub fn low_back_emf_raw_steps() -> [Case; 3] {
+    [
+        Case::written(
+            1261,
+            1.101_979_862_396_763_5e-3,
+            0.045_473_92,
+            Motion::Step(0.521_672_576_028_819_7),
+            "resistance=x1.1044542,torque-constant=x0.97223526,back-emf=x0.94363636,\
+             gear-inertia=x1.0161861,gear-friction=x2.9360538,supply=11.338679V,\
+             current-offset=-16.18603,current-gain=1.0336816,pot-offset=-1.8786368,\
+             link-inertia=x2.1930177",
+        ),
+        Case::written(
+            5630,
+            5.616_380_752_097_871e-4,
+            0.109_189_98,
+            Motion::Step(0.313_701_049_465_104_96),
+            "resistance=x1.0429096,torque-constant=x0.92172146,back-emf=x0.9257642,\
+             gear-inertia=x1.009925,gear-friction=x1.3559302,supply=11.530965V,\
+             current-offset=19.412586,current-gain=0.97087526,pot-offset=2.5928273,\
+             link-inertia=x2.9706748",
+        ),
+        Case::written(
+            4089,
+            2.411_634_391_516_877e-3,
+            0.099_774_405,
+            Motion::Step(-0.387_261_423_247_824),
+            "resistance=x1.3842719,torque-constant=x0.903649,back-emf=x0.90698,\
+             gear-inertia=x0.83276933,gear-friction=x2.1179175,supply=10.98493V,\
+             current-offset=-7.1598444,current-gain=1.0343484,pot-offset=-2.260069,\
+             link-inertia=x1.5899706",
+        ),
+    ]
+}
+
 /// Three nominal grid cases of raw steps at soft settings (L = 7.6–7.9 mm) under light
 /// loads, whose link rang on the beams after the profile's torque steps and settled at
 /// 2.01 / 1.30 / 1.34 times their limit before the shaper (docs/design.md §11, "Raw steps

@@ -354,6 +354,15 @@ fn a_link_held_off_by_a_stiff_gear_is_pressed_in_within_the_settling_limit() {
     assert_every_limit_but_the_time_bound(&grid::stiff_gears_held_off());
 }
 
+/// A raw step's damping takes the observer's gear speed for the motor the step met (docs/
+/// design.md §11, "The damping for the motor a raw step meets"). The three off-nominal grid
+/// cases of `grid::low_back_emf_raw_steps` (back-EMF constant ×0.91–0.94) meet every limit
+/// but the raw steps' time-optimal bound.
+#[test]
+fn raw_steps_of_a_motor_with_a_low_back_emf_constant_do_not_overshoot() {
+    assert_every_limit_but_the_time_bound(&grid::low_back_emf_raw_steps());
+}
+
 /// Raw steps at soft settings go through the shaper: the three nominal grid cases of
 /// `grid::soft_raw_steps_ringing` meet every limit but the raw steps' time-optimal bound.
 #[test]

@@ -310,6 +310,9 @@ impl Controller {
         // velocity feed-forward for the actuator a move meets").
         self.speed_scale = match cmd {
             Command::Move { .. } => SpeedScale::start(self.gear_at(self.link_angle()), loaded),
+            // ... and a raw step's damping for the motor's back-EMF constant (design §11,
+            // "The damping for the motor a raw step meets").
+            Command::Step { .. } => SpeedScale::start_raw(self.gear_at(self.link_angle()), loaded),
             _ => SpeedScale::NEW,
         };
         self.ff = ff;
@@ -414,10 +417,22 @@ impl Controller {
             self.speed_scale.stop();
             self.wind_press(quiet);
         }
+        // Over a raw step's fit the damping's filtered gear speed settles on ω̂/s, added
+        // after the tick so that the control step pays nothing (design §11, "The damping
+        // for the motor a raw step meets").
+        let w = q32_to_q16(out.gear_velocity.to_bits());
+        let alpha = self.sched.alpha.apply(Q16_ONE);
+        let c = self.speed_scale.lead(w);
+        if c != 0 {
+            self.w_fb = self.w_fb.saturating_add(c);
+            // Not a change of the gear's speed: the torque estimate's J_g·Δω̂ skips it.
+            self.w_gear_prev = self.w_gear_prev.saturating_add(c);
+        }
         self.speed_scale.take(
-            q32_to_q16(out.gear_velocity.to_bits()),
+            w,
             q32_to_q16(out.current.to_bits()),
             self.gear_at(out.link_angle.to_bits()),
+            alpha,
         );
     }
 

@@ -22,7 +22,8 @@
 //!    [`sine_feedforward`]), plus the free-play and compliance
 //!    compensation (a dead-zone inverse on the gear side, the beams' hysteresis band) and,
 //!    for a moving reference and a loaded link, the gear's Coulomb friction;
-//! 7. PID with the derivative on the filtered gear velocity; integral separation, and a
+//! 7. PID with the derivative on the filtered gear velocity (over a loaded raw step, read
+//!    for the motor's back-EMF constant by [`speed_scale`]); integral separation, and a
 //!    gear hold inside the target count of a stationary reference (dead band: the
 //!    observer's bias bound for a current-sense offset and a warm motor's resistance).
 //!    While the link floats in the free play (little load held), P and I act on the gear's

@@ -22,9 +22,13 @@
 //! (`Controller::track_speed`, the service's per-tick work): per tick two adds, per window
 //! five 32×32→64-bit products and a 2×2 solve with one 32-bit division.
 //!
+//! A loaded raw step runs the same fit after `RAW_MIN_TRAVEL` for its damping instead: where
+//! s < 1 the derivative's filtered gear speed is led to ω̂/s after each tick
+//! ([`SpeedScale::lead`]; docs/design.md §11, "The damping for the motor a raw step meets").
+//!
 //! Formats: ω̂ Q16 rad/s, i Q16 A, angles I32F32 rad bits, the scale Q16.
 
-use super::gain::{q32_to_q16, Q16_ONE};
+use super::gain::{q32_to_q16, sat_i32, Q16_ONE};
 
 /// Ticks per window: the encoder's count (1.5 mrad) is then at most a few per cent of a
 /// window's travel at the speeds of a move.
@@ -34,6 +38,11 @@ pub const MIN_WINDOWS: u16 = 4;
 /// Gear travel before the fit is used, rad (I32F32 bits of 0.1 rad): the current-sense
 /// offset's bias (±20 counts: 80 mrad/s) is then a small part of the travel.
 pub const MIN_TRAVEL: i64 = 429_496_730;
+/// Gear travel before a raw step's fit is used (I32F32 bits of 0.2 rad): a raw step's gear
+/// crosses the free play as it starts, off the deflection the feed-forward planned, and
+/// over 0.1 rad the fit read nominal motors at 0.89–0.93 (docs/design.md §11, "The damping
+/// for the motor a raw step meets").
+pub const RAW_MIN_TRAVEL: i64 = 2 * MIN_TRAVEL;
 /// The fit's range, Q16: V̂_s/V_s over 12/12.6…12/10.5 times k_e/k̂_e over 0.9…1.1 (the
 /// acceptance ranges, docs/design.md §9) with a margin.
 pub const SCALE_MIN: i32 = 55_706; // 0.85
@@ -46,11 +55,23 @@ const VALUE_SHIFT: u32 = 10;
 /// much): they stay within `i32`, so the fit's products are single 32×32→64-bit multiplies.
 const SUM_LIMIT: i32 = 1 << 30;
 
+/// What a [`SpeedScale`] counts. One byte: the tracker sits in every controller, and the
+/// emulated firmware's RAM leaves its stack a few dozen bytes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Counting {
+    /// Nothing: no loaded command, or its reference stopped.
+    Off,
+    /// A loaded move's, for its velocity feed-forward.
+    Move,
+    /// A loaded raw step's, for its damping ([`SpeedScale::lead`]).
+    Raw,
+}
+
 /// A move's window sums and the velocity feed-forward scale they give.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SpeedScale {
-    /// Counting (a loaded move whose reference still moves).
-    on: bool,
+    /// What is counted, if anything (a loaded command whose reference still moves).
+    counting: Counting,
     /// Ticks in the current window, and its sums of ω̂ and i (Q16·ticks).
     ticks: u8,
     obs: i32,
@@ -63,12 +84,15 @@ pub struct SpeedScale {
     sums: [i32; 5],
     /// The feed-forward scale, Q16.
     scale: i32,
+    /// A raw step's (1/s − 1)·α/(1 − α) for s < 1, Q16 (0 without a fit or for s ≥ 1): see
+    /// [`SpeedScale::lead`].
+    lead: i32,
 }
 
 impl SpeedScale {
     /// No move: the scale is 1 and nothing is counted.
     pub const NEW: Self = Self {
-        on: false,
+        counting: Counting::Off,
         ticks: 0,
         obs: 0,
         cur: 0,
@@ -77,6 +101,7 @@ impl SpeedScale {
         windows: 0,
         sums: [0; 5],
         scale: Q16_ONE,
+        lead: 0,
     };
 
     /// A move starting with the gear at `gear` (I32F32 rad); `loaded`: the link is held
@@ -85,10 +110,41 @@ impl SpeedScale {
     #[must_use]
     pub const fn start(gear: i64, loaded: bool) -> Self {
         Self {
-            on: loaded,
+            counting: if loaded {
+                Counting::Move
+            } else {
+                Counting::Off
+            },
             start: gear,
             origin: gear,
             ..Self::NEW
+        }
+    }
+
+    /// A raw step starting with the gear at `gear`: the same fit, after
+    /// [`RAW_MIN_TRAVEL`], for the observer's speed in the damping ([`SpeedScale::lead`]);
+    /// the step's feed-forward stays its profile's ("Braking for the actuator the step
+    /// met").
+    #[must_use]
+    pub const fn start_raw(gear: i64, loaded: bool) -> Self {
+        Self {
+            counting: if loaded { Counting::Raw } else { Counting::Off },
+            start: gear,
+            origin: gear,
+            ..Self::NEW
+        }
+    }
+
+    /// What the damping's filtered gear speed gets after a tick whose observer read `w`
+    /// (Q16 rad/s), over a raw step's fit: the filter w_f += α·(ω̂ − w_f) then settles on
+    /// the true speed ω̂/s, the next tick reading it, when (ω̂/s − ω̂)·α/(1 − α) is added
+    /// after each tick (0 without a fit, and for a fit that reads the gear fast, s ≥ 1).
+    #[must_use]
+    pub fn lead(&self, w: i32) -> i32 {
+        if self.lead == 0 {
+            0
+        } else {
+            sat_i32((i64::from(w) * i64::from(self.lead)) >> 16)
         }
     }
 
@@ -101,19 +157,19 @@ impl SpeedScale {
 
     /// The reference stopped: counting ends, the scale stays for the rest of the command.
     pub fn stop(&mut self) {
-        self.on = false;
+        self.counting = Counting::Off;
     }
 
-    /// One tick of the move: ω̂ (Q16 rad/s), the current (Q16 A) and the gear position
-    /// (I32F32 rad).
-    pub fn take(&mut self, w_gear: i32, current: i32, gear: i64) {
-        if self.on {
-            self.count(w_gear, current, gear);
+    /// One tick of the move: ω̂ (Q16 rad/s), the current (Q16 A), the gear position
+    /// (I32F32 rad) and the damping filter's α (Q16, in (0, 1)).
+    pub fn take(&mut self, w_gear: i32, current: i32, gear: i64, alpha: i32) {
+        if self.counting != Counting::Off {
+            self.count(w_gear, current, gear, alpha);
         }
     }
 
     /// [`SpeedScale::take`] within a move.
-    fn count(&mut self, w_gear: i32, current: i32, gear: i64) {
+    fn count(&mut self, w_gear: i32, current: i32, gear: i64, alpha: i32) {
         self.obs = self.obs.saturating_add(w_gear);
         self.cur = self.cur.saturating_add(current);
         self.ticks += 1;
@@ -144,9 +200,24 @@ impl SpeedScale {
                 *s >>= 1;
             }
         }
-        if self.windows >= MIN_WINDOWS && gear.saturating_sub(self.origin).abs() > MIN_TRAVEL {
+        let raw = self.counting == Counting::Raw;
+        let travel = if raw { RAW_MIN_TRAVEL } else { MIN_TRAVEL };
+        if self.windows >= MIN_WINDOWS && gear.saturating_sub(self.origin).abs() > travel {
             if let Some(s) = self.fit() {
-                self.scale = s.clamp(SCALE_MIN, SCALE_MAX);
+                let s = s.clamp(SCALE_MIN, SCALE_MAX);
+                if raw {
+                    // 2³²/s as 2³¹/(s/2) (s/2 ≥ 27 853), and α/(1 − α) (α < 1, so α·2¹⁶
+                    // fits): two 32-bit divisions a window. Only for a slow read (s < 1): a
+                    // fast one damps more than configured, the safe side, and taking it back
+                    // put a heavy link's raw step above σ_allow (design §11, "The damping
+                    // for the motor a raw step meets").
+                    let inv = ((1u32 << 31) / (s as u32 >> 1)) as i32;
+                    let a = alpha.clamp(0, Q16_ONE - 1) as u32;
+                    let ratio = i64::from((a << 16) / ((Q16_ONE as u32) - a));
+                    self.lead = sat_i32((i64::from((inv - Q16_ONE).max(0)) * ratio) >> 16);
+                } else {
+                    self.scale = s;
+                }
             }
         }
     }
@@ -184,12 +255,18 @@ mod tests {
     /// Feeds windows of a gear moving at a speed profile with the observer reading
     /// s·ω + c·i; the fit finds s. Oracle: the s and c the readings were built with.
     fn fitted(s: f64, c: f64) -> f64 {
-        let mut t = SpeedScale::start(0, true);
+        let t = fed(SpeedScale::start(0, true), s, c, 3.0);
+        f64::from(t.scale) / 65536.0
+    }
+
+    /// The tracker `t` after a move of peak speed `peak` rad/s (travel 0.19·peak rad) read
+    /// as s·ω + c·i.
+    fn fed(mut t: SpeedScale, s: f64, c: f64, peak: f64) -> SpeedScale {
         let mut gear = 0.0f64; // rad
         for k in 0..300 {
             // A move's speed and a current that is not proportional to it.
             let tau = f64::from(k) / 300.0;
-            let w = 3.0 * (core::f64::consts::PI * tau).sin();
+            let w = peak * (core::f64::consts::PI * tau).sin();
             let i = 0.3 * (2.0 * core::f64::consts::PI * tau).cos() + 0.1;
             gear += w / 1000.0;
             let obs = s * w + c * i;
@@ -197,9 +274,47 @@ mod tests {
                 (obs * 65536.0) as i32,
                 (i * 65536.0) as i32,
                 (gear * 4_294_967_296.0) as i64,
+                ALPHA,
             );
         }
-        f64::from(t.scale) / 65536.0
+        t
+    }
+
+    /// The damping filter's α in the tests, Q16 (0.2).
+    const ALPHA: i32 = 13_107;
+
+    /// What the control step reads from its filter, w_f + α·(ω̂ − w_f) (f64, as the step's
+    /// filter), after `ticks` ticks of a steady observer read `w` rad/s with the tracker's
+    /// lead added after each.
+    fn damped(t: &SpeedScale, w: f64, ticks: u32) -> f64 {
+        let a = f64::from(ALPHA) / 65536.0;
+        let (mut wf, mut read) = (0.0, 0.0);
+        for _ in 0..ticks {
+            wf += a * (w - wf);
+            read = wf;
+            wf += f64::from(t.lead((w * 65536.0) as i32)) / 65536.0;
+        }
+        read
+    }
+
+    #[test]
+    fn a_raw_steps_fit_leads_the_damping_to_the_gear_speed_and_leaves_the_feed_forward_alone() {
+        // Oracle: the observer read s·ω, so the damping should read ω = ω̂/s where s < 1,
+        // and ω̂ itself where s ≥ 1; the feed-forward stays as it is.
+        for (s, due) in [(0.9, 2.0 / 0.9), (0.95, 2.0 / 0.95), (1.0, 2.0), (1.1, 2.0)] {
+            let t = fed(SpeedScale::start_raw(0, true), s, 0.3, 3.0);
+            assert_eq!(t.apply(1000 << 16), 1000 << 16);
+            let w = damped(&t, 2.0, 200);
+            assert!((w - due).abs() < 0.02, "s {s}: {w}");
+        }
+        // 0.19 rad of travel is below the raw step's 0.2: no fit yet; a move's uses it.
+        let t = fed(SpeedScale::start_raw(0, true), 0.9, 0.0, 1.0);
+        assert_eq!(t.lead(2 << 16), 0);
+        assert!((fitted_at(0.9, 1.0) - 0.9).abs() < 0.01);
+    }
+
+    fn fitted_at(s: f64, peak: f64) -> f64 {
+        f64::from(fed(SpeedScale::start(0, true), s, 0.0, peak).scale) / 65536.0
     }
 
     #[test]
@@ -217,16 +332,16 @@ mod tests {
     fn a_floating_link_or_no_move_leaves_the_feed_forward_alone() {
         let mut t = SpeedScale::start(0, false);
         for k in 0..100 {
-            t.take(65536 * 3, 65536 / 4, i64::from(k) << 28);
+            t.take(65536 * 3, 65536 / 4, i64::from(k) << 28, ALPHA);
         }
         assert_eq!(t.apply(1000 << 16), 1000 << 16);
         let mut t = SpeedScale::start(0, true);
         t.stop();
-        t.take(65536 * 3, 0, 1 << 40);
+        t.take(65536 * 3, 0, 1 << 40, ALPHA);
         assert_eq!(
             t,
             SpeedScale {
-                on: false,
+                counting: Counting::Off,
                 ..SpeedScale::start(0, true)
             }
         );
