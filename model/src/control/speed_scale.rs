@@ -109,16 +109,14 @@ impl SpeedScale {
     /// deflection shows). Counting starts afresh.
     #[must_use]
     pub const fn start(gear: i64, loaded: bool) -> Self {
-        Self {
-            counting: if loaded {
+        Self::begin(
+            gear,
+            if loaded {
                 Counting::Move
             } else {
                 Counting::Off
             },
-            start: gear,
-            origin: gear,
-            ..Self::NEW
-        }
+        )
     }
 
     /// A raw step starting with the gear at `gear`: the same fit, after
@@ -127,8 +125,13 @@ impl SpeedScale {
     /// met").
     #[must_use]
     pub const fn start_raw(gear: i64, loaded: bool) -> Self {
+        Self::begin(gear, if loaded { Counting::Raw } else { Counting::Off })
+    }
+
+    /// Counting `counting` afresh from the gear at `gear`.
+    const fn begin(gear: i64, counting: Counting) -> Self {
         Self {
-            counting: if loaded { Counting::Raw } else { Counting::Off },
+            counting,
             start: gear,
             origin: gear,
             ..Self::NEW
@@ -255,8 +258,12 @@ mod tests {
     /// Feeds windows of a gear moving at a speed profile with the observer reading
     /// s·ω + c·i; the fit finds s. Oracle: the s and c the readings were built with.
     fn fitted(s: f64, c: f64) -> f64 {
-        let t = fed(SpeedScale::start(0, true), s, c, 3.0);
-        f64::from(t.scale) / 65536.0
+        fitted_at(s, c, 3.0)
+    }
+
+    /// The move's scale after [`fed`] at peak speed `peak`, as a factor.
+    fn fitted_at(s: f64, c: f64, peak: f64) -> f64 {
+        f64::from(fed(SpeedScale::start(0, true), s, c, peak).scale) / 65536.0
     }
 
     /// The tracker `t` after a move of peak speed `peak` rad/s (travel 0.19·peak rad) read
@@ -310,11 +317,7 @@ mod tests {
         // 0.19 rad of travel is below the raw step's 0.2: no fit yet; a move's uses it.
         let t = fed(SpeedScale::start_raw(0, true), 0.9, 0.0, 1.0);
         assert_eq!(t.lead(2 << 16), 0);
-        assert!((fitted_at(0.9, 1.0) - 0.9).abs() < 0.01);
-    }
-
-    fn fitted_at(s: f64, peak: f64) -> f64 {
-        f64::from(fed(SpeedScale::start(0, true), s, 0.0, peak).scale) / 65536.0
+        assert!((fitted_at(0.9, 0.0, 1.0) - 0.9).abs() < 0.01);
     }
 
     #[test]
