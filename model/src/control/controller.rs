@@ -421,7 +421,6 @@ impl Controller {
         // after the tick so that the control step pays nothing (design §11, "The damping
         // for the motor a raw step meets").
         let w = q32_to_q16(out.gear_velocity.to_bits());
-        let alpha = self.sched.alpha.apply(Q16_ONE);
         let c = self.speed_scale.lead(w);
         if c != 0 {
             self.w_fb = self.w_fb.saturating_add(c);
@@ -432,7 +431,7 @@ impl Controller {
             w,
             q32_to_q16(out.current.to_bits()),
             self.gear_at(out.link_angle.to_bits()),
-            alpha,
+            self.sched.alpha,
         );
     }
 

@@ -28,7 +28,7 @@
 //!
 //! Formats: ω̂ Q16 rad/s, i Q16 A, angles I32F32 rad bits, the scale Q16.
 
-use super::gain::{q32_to_q16, sat_i32, Q16_ONE};
+use super::gain::{q32_to_q16, sat_i32, Gain, Q16_ONE};
 
 /// Ticks per window: the encoder's count (1.5 mrad) is then at most a few per cent of a
 /// window's travel at the speeds of a move.
@@ -164,15 +164,16 @@ impl SpeedScale {
     }
 
     /// One tick of the move: ω̂ (Q16 rad/s), the current (Q16 A), the gear position
-    /// (I32F32 rad) and the damping filter's α (Q16, in (0, 1)).
-    pub fn take(&mut self, w_gear: i32, current: i32, gear: i64, alpha: i32) {
+    /// (I32F32 rad) and the damping filter's α (in (0, 1); read only on a raw step's
+    /// fitted windows, so the ticks between pay nothing for it).
+    pub fn take(&mut self, w_gear: i32, current: i32, gear: i64, alpha: Gain) {
         if self.counting != Counting::Off {
             self.count(w_gear, current, gear, alpha);
         }
     }
 
     /// [`SpeedScale::take`] within a move.
-    fn count(&mut self, w_gear: i32, current: i32, gear: i64, alpha: i32) {
+    fn count(&mut self, w_gear: i32, current: i32, gear: i64, alpha: Gain) {
         self.obs = self.obs.saturating_add(w_gear);
         self.cur = self.cur.saturating_add(current);
         self.ticks += 1;
@@ -215,7 +216,7 @@ impl SpeedScale {
                     // put a heavy link's raw step above σ_allow (design §11, "The damping
                     // for the motor a raw step meets").
                     let inv = ((1u32 << 31) / (s as u32 >> 1)) as i32;
-                    let a = alpha.clamp(0, Q16_ONE - 1) as u32;
+                    let a = alpha.apply(Q16_ONE).clamp(0, Q16_ONE - 1) as u32;
                     let ratio = i64::from((a << 16) / ((Q16_ONE as u32) - a));
                     self.lead = sat_i32((i64::from((inv - Q16_ONE).max(0)) * ratio) >> 16);
                 } else {
@@ -281,20 +282,22 @@ mod tests {
                 (obs * 65536.0) as i32,
                 (i * 65536.0) as i32,
                 (gear * 4_294_967_296.0) as i64,
-                ALPHA,
+                alpha(),
             );
         }
         t
     }
 
-    /// The damping filter's α in the tests, Q16 (0.2).
-    const ALPHA: i32 = 13_107;
+    /// The damping filter's α in the tests (0.2).
+    fn alpha() -> Gain {
+        Gain::new(fixed::types::I64F64::from_num(0.2)).expect("0.2 is a gain")
+    }
 
     /// What the control step reads from its filter, w_f + α·(ω̂ − w_f) (f64, as the step's
     /// filter), after `ticks` ticks of a steady observer read `w` rad/s with the tracker's
     /// lead added after each.
     fn damped(t: &SpeedScale, w: f64, ticks: u32) -> f64 {
-        let a = f64::from(ALPHA) / 65536.0;
+        let a = f64::from(alpha().apply(Q16_ONE)) / 65536.0;
         let (mut wf, mut read) = (0.0, 0.0);
         for _ in 0..ticks {
             wf += a * (w - wf);
@@ -335,12 +338,12 @@ mod tests {
     fn a_floating_link_or_no_move_leaves_the_feed_forward_alone() {
         let mut t = SpeedScale::start(0, false);
         for k in 0..100 {
-            t.take(65536 * 3, 65536 / 4, i64::from(k) << 28, ALPHA);
+            t.take(65536 * 3, 65536 / 4, i64::from(k) << 28, alpha());
         }
         assert_eq!(t.apply(1000 << 16), 1000 << 16);
         let mut t = SpeedScale::start(0, true);
         t.stop();
-        t.take(65536 * 3, 0, 1 << 40, ALPHA);
+        t.take(65536 * 3, 0, 1 << 40, alpha());
         assert_eq!(
             t,
             SpeedScale {
