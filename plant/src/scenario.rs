@@ -485,6 +485,12 @@ struct SegmentWorld {
     stiffness_nm_per_rad: f64,
 }
 
+/// `e`, left in `slot` (a run that failed to build).
+fn failed(slot: &mut Option<Result<ScenarioRun, ServoError>>, e: ServoError) -> ServoError {
+    *slot = Some(Err(e));
+    e
+}
+
 /// A scenario in progress (see the module doc for the per-tick protocol).
 pub struct ScenarioRun {
     plan: Plan,
@@ -529,31 +535,40 @@ impl ScenarioRun {
     /// # Errors
     /// As [`ScenarioRun::new`].
     pub fn with_plant(id: ScenarioId, plant: &Overrides) -> Result<ScenarioRun, ServoError> {
+        let mut slot = None;
+        Self::build_in(&mut slot, id, plant)?;
+        slot.unwrap_or(Err(ServoError::Faulted))
+    }
+
+    /// [`ScenarioRun::with_plant`] built in `slot` (left `Some(Err(…))` on an error): the
+    /// run is written there once and its segments filled in place, so that a board that
+    /// keeps it in a static does not hold it on its stack as well (the firmware's boot
+    /// stack, docs/performance.md).
+    ///
+    /// # Errors
+    /// As [`ScenarioRun::new`].
+    pub fn build_in<'a>(
+        slot: &'a mut Option<Result<ScenarioRun, ServoError>>,
+        id: ScenarioId,
+        plant: &Overrides,
+    ) -> Result<&'a mut ScenarioRun, ServoError> {
         let plan = Plan::of(id);
         let design = Design::paper();
-        let mut worlds: [Option<SegmentWorld>; 5] = Default::default();
-        let mut prepared: [Option<Prepared>; 5] = Default::default();
-        for ((seg, world), prep) in plan.segments.iter().zip(&mut worlds).zip(&mut prepared) {
-            if let Some(seg) = seg {
-                *world = Some(Self::segment_world(&plan, &design, seg, plant)?);
-                *prep = Some(Prepared::new(
-                    &design,
-                    &plan.config(seg),
-                    &plan.supervision,
-                )?);
-            }
-        }
-        let Some(first) = worlds[0].clone() else {
-            return Err(ServoError::Faulted);
+        let first = plan.segments[0]
+            .ok_or(ServoError::Faulted)
+            .and_then(|seg| Self::segment_world(&plan, &design, &seg, plant));
+        let first = match first {
+            Ok(w) => w,
+            Err(e) => return Err(failed(slot, e)),
         };
-        let (plant, truth) = (first.plant, first.truth);
-        let readings = plant.readings();
-        Ok(ScenarioRun {
+        let (mechanism, truth) = (first.plant.clone(), first.truth);
+        let readings = mechanism.readings();
+        let built = slot.insert(Ok(ScenarioRun {
             plan,
             design,
-            worlds,
-            prepared,
-            plant,
+            worlds: [Some(first), None, None, None, None],
+            prepared: Default::default(),
+            plant: mechanism,
             seg_index: 0,
             seg_tick: 0,
             tick: 0,
@@ -573,7 +588,35 @@ impl ScenarioRun {
             results: [None; 5],
             events: Deque::new(),
             done: false,
-        })
+        }));
+        let Ok(run) = built else {
+            return Err(ServoError::Faulted);
+        };
+        if let Err(e) = run.fill_segments(plant) {
+            return Err(failed(slot, e));
+        }
+        match slot {
+            Some(Ok(run)) => Ok(run),
+            _ => Err(ServoError::Faulted),
+        }
+    }
+
+    /// Every segment's world (the first is in) and prepared configuration, in place.
+    fn fill_segments(&mut self, plant: &Overrides) -> Result<(), ServoError> {
+        for k in 0..self.plan.segments.len() {
+            let Some(seg) = self.plan.segments[k] else {
+                continue;
+            };
+            if k > 0 {
+                self.worlds[k] = Some(Self::segment_world(&self.plan, &self.design, &seg, plant)?);
+            }
+            self.prepared[k] = Some(Prepared::new(
+                &self.design,
+                &self.plan.config(&seg),
+                &self.plan.supervision,
+            )?);
+        }
+        Ok(())
     }
 
     /// A servo set up for this scenario's first segment (disabled; the first tick's

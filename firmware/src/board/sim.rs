@@ -103,7 +103,7 @@ pub struct Simulation {
 #[allow(clippy::large_enum_variant)]
 enum SimulationKind {
     Scenario {
-        run: ScenarioRun,
+        run: &'static mut ScenarioRun,
         actions: heapless::Vec<Action, 3>,
     },
     Served(ServedActuator),
@@ -116,12 +116,13 @@ impl Simulation {
     /// [`serve`]: Simulation::serve
     #[inline(never)] // its frame (the 14 KiB scenario, built in place) ends with it
     pub fn new(id: ScenarioId, plant: &Overrides) -> (&'static mut Simulation, Servo, Service) {
+        let run = match place_run(id, plant) {
+            Ok(r) => r,
+            Err(e) => defmt::panic!("scenario {=str} rejected: {}", id.name(), e),
+        };
         let sim = place(Simulation {
             kind: SimulationKind::Scenario {
-                run: match ScenarioRun::with_plant(id, plant) {
-                    Ok(r) => r,
-                    Err(e) => defmt::panic!("scenario {=str} rejected: {}", id.name(), e),
-                },
+                run,
                 actions: heapless::Vec::new(),
             },
         });
@@ -174,6 +175,19 @@ fn place(simulation: Simulation) -> &'static mut Simulation {
     static mut SLOT: Option<Simulation> = None;
     // SAFETY: called once, from init, before any task runs: no other reference exists.
     unsafe { (*core::ptr::addr_of_mut!(SLOT)).insert(simulation) }
+}
+
+/// Builds the run's scenario straight into its static (returned by value it took two
+/// copies of its 14 KiB on init's stack). Only init calls this, once.
+#[inline(never)]
+fn place_run(
+    id: ScenarioId,
+    plant: &Overrides,
+) -> Result<&'static mut ScenarioRun, model::servo::ServoError> {
+    static mut RUN: Option<Result<ScenarioRun, model::servo::ServoError>> = None;
+    // SAFETY: called once, from init, before any task runs: no other reference exists.
+    let slot = unsafe { &mut *core::ptr::addr_of_mut!(RUN) };
+    ScenarioRun::build_in(slot, id, plant)
 }
 
 /// Clutch length a serving board starts at, mm.
