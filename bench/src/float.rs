@@ -182,7 +182,8 @@ pub struct FloatSchedule {
     w_defl: f32,
     i_lim: f32,
     /// The current window's half-width, A (`Schedule`'s: at most `RESISTANCE_LOW` of the
-    /// motor's rating).
+    /// motor's rating; the fixed-point loop widens it for the resistance the duty jump's
+    /// estimate reads, which is not ported: on the nominal motor it stays the configured).
     i_win: f32,
     i_lim_from_beams: bool,
     tau_lim: f32,

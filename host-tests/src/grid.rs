@@ -681,6 +681,38 @@ pub fn low_back_emf_raw_steps() -> [Case; 3] {
     ]
 }
 
+/// Two off-nominal grid cases of a warm motor (R ×1.34–1.35) holding 0.26–0.27 N·m at a
+/// soft setting (L = 7.8 mm), where the beams set the current limit: the current window
+/// about the back-EMF, R̂·i_lim wide in duty, gave the motor i_lim·R̂/R, too little for the
+/// load, and the link was pushed 439 and 396 counts off before the window followed the
+/// observer's resistance estimate (docs/design.md §11, "Runs that ended far off"): seed
+/// 1000113 #149 and seed 1000210 #154, written out in full.
+#[must_use]
+pub fn warm_motors_pushed_off() -> [Case; 2] {
+    [
+        Case::written(
+            7808,
+            4.903_621_873_224_346_5e-3,
+            0.263_474_32,
+            Motion::Move(0.094_522_650_884_313_61, 205),
+            "resistance=x1.3373667,torque-constant=x0.95915586,back-emf=x1.0196127,\
+             gear-inertia=x0.81953126,gear-friction=x0.6394633,supply=12.274647V,\
+             current-offset=9.080199,current-gain=1.016173,pot-offset=-2.9826229,\
+             link-inertia=x1.1020557",
+        ),
+        Case::written(
+            7795,
+            4.941_541_098_690_919e-3,
+            0.268_530_94,
+            Motion::Move(0.154_771_404_168_385_06, 257),
+            "resistance=x1.3542585,torque-constant=x0.9701824,back-emf=x0.9070954,\
+             gear-inertia=x1.1984419,gear-friction=x1.1395386,supply=12.323512V,\
+             current-offset=14.099172,current-gain=1.0017277,pot-offset=-0.8458337,\
+             link-inertia=x2.0498917",
+        ),
+    ]
+}
+
 /// Three nominal grid cases of raw steps at soft settings (L = 7.6–7.9 mm) under light
 /// loads, whose link rang on the beams after the profile's torque steps and settled at
 /// 2.01 / 1.30 / 1.34 times their limit before the shaper (docs/design.md §11, "Raw steps

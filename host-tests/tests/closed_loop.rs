@@ -363,6 +363,19 @@ fn raw_steps_of_a_motor_with_a_low_back_emf_constant_do_not_overshoot() {
     assert_every_limit_but_the_time_bound(&grid::low_back_emf_raw_steps());
 }
 
+/// A warm motor holding a heavy load where the beams set the current limit gets the
+/// current the load needs: the window about the back-EMF follows the observer's resistance
+/// estimate (docs/design.md §11, "Runs that ended far off"). The two cases of
+/// `grid::warm_motors_pushed_off` end within a count of their targets, at rest, within the
+/// beams and without a fault; their overshoot and settling time stay open.
+#[test]
+fn a_warm_motor_under_a_heavy_load_holds_its_target() {
+    assert_every_limit_but(
+        &grid::warm_motors_pushed_off(),
+        &[grid::OVERSHOOT, grid::SETTLING, grid::RAW_STEP_BOUND],
+    );
+}
+
 /// Raw steps at soft settings go through the shaper: the three nominal grid cases of
 /// `grid::soft_raw_steps_ringing` meet every limit but the raw steps' time-optimal bound.
 #[test]

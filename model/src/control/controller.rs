@@ -412,7 +412,15 @@ impl Controller {
             s.w_step_per_count_q32,
         ) {
             s.w_per_count_q32 = w;
+            s.i_win_est_duty_q16 = widened_window(s.i_win_cfg_duty_q16, w, s.w_per_count_cfg_q32);
         }
+        // The window for the motor the estimate reads, as far as the load held needs it:
+        // widened whole it let lightly loaded holds on a warm motor hunt (design §11, "Runs
+        // that ended far off").
+        let held = q32_to_q16(self.integ).saturating_abs();
+        s.i_win_duty_q16 = s
+            .i_win_est_duty_q16
+            .min(s.i_win_cfg_duty_q16.max(held.saturating_add(held >> 2)));
         if stationary {
             self.speed_scale.stop();
             self.wind_press(quiet);
@@ -1091,6 +1099,20 @@ fn impact_limit(
     }
 }
 
+/// The current window `cfg` (‰ Q16, R̂·i_lim in duty) for the resistance an observer
+/// estimate `w` (Q32 rad/s per count) reads against the configured `w_cfg`: R/R̂ = w/w_cfg,
+/// the back-EMF constant being the configured one in both. Never narrower than `cfg`
+/// (narrowed for a colder motor, an unloaded step on a motor ×0.8 ended 1.8 counts off).
+fn widened_window(cfg: i32, w: i64, w_cfg: i64) -> i32 {
+    if w <= w_cfg || w_cfg <= 0 {
+        return cfg;
+    }
+    // w < 2⁴⁰ (the schedule's bound): w·2¹⁶ < 2⁵⁶; the ratio is below 1.6 (`duty_jump`'s
+    // range) and cfg below 2³¹, so the product fits an i64.
+    let ratio = (w << 16) / w_cfg;
+    sat_i32((i64::from(cfg) * ratio) >> 16)
+}
+
 /// An output clamped to its [`Window`].
 struct Clamped {
     /// The output, ‰ Q16.
@@ -1135,6 +1157,23 @@ mod tests {
             gear_pot: Some(512),
             current_adc: adc,
             applied_duty: None,
+        }
+    }
+
+    #[test]
+    fn the_window_widens_by_the_resistance_the_estimate_reads_and_never_narrows() {
+        // Oracle: cfg·w/w_cfg in f64 for a warmer motor, cfg itself otherwise.
+        let w_cfg: i64 = 37 << 32; // rad/s per count, Q32 (the order of the paper motor's)
+        let cfg: i32 = 350 << 16; // ‰ Q16
+        for ratio in [1.0, 1.06, 1.2, 1.34, 1.6] {
+            let w = (w_cfg as f64 * ratio) as i64;
+            let got = f64::from(widened_window(cfg, w, w_cfg)) / 65536.0;
+            let due = 350.0 * ratio;
+            assert!((got - due).abs() < 0.01, "×{ratio}: {got} ‰ against {due}");
+        }
+        for ratio in [0.7, 0.95] {
+            let w = (w_cfg as f64 * ratio) as i64;
+            assert_eq!(widened_window(cfg, w, w_cfg), cfg, "×{ratio}");
         }
     }
 

@@ -257,8 +257,15 @@ pub struct Schedule {
     /// once here, not per tick).
     pub(crate) i_lim_duty_q16: i32,
     /// Half-width of the current window about the back-EMF, ‰ Q16: the current limit, at
-    /// most `RESISTANCE_LOW` × the motor's current rating, in duty.
+    /// most `RESISTANCE_LOW` × the motor's current rating, in duty; as configured, and
+    /// widened for the warmer motor the observer's resistance estimate reads, within 5/4
+    /// of the load the integrator holds (`Controller::track_speed`, design §11, "Runs
+    /// that ended far off").
     pub(crate) i_win_duty_q16: i32,
+    pub(crate) i_win_cfg_duty_q16: i32,
+    /// The configured window times the estimate's resistance over the configured one
+    /// (never below the configured window), ‰ Q16.
+    pub(crate) i_win_est_duty_q16: i32,
     pub(crate) i_lim_from_beams: bool,
     /// Coupling torque limit τ_lim = margin·τ_cap(L + ΔL) (N·m, Q16).
     pub(crate) tau_lim_q16: i32,
@@ -479,6 +486,10 @@ impl Schedule {
         // ‰ of duty per ampere through R (the current limit, the window, R·J/k_t).
         let duty_per_amp_wide = mul(duty_per_volt, r)?;
         let duty_per_amp = to_gain(duty_per_amp_wide)?;
+        let i_win = to_q16(mul(
+            duty_per_amp_wide,
+            i_lim.min(mul(wide(lim.max_current_a), wide(RESISTANCE_LOW))?),
+        )?)?;
         let ff_vel = mul(duty_per_volt, add(ke, div(mul(r, bv)?, kt)?)?)?;
         let ff_acc = div(mul(duty_per_amp_wide, p.j)?, kt)?;
         // τ_c → duty as for the loads below: ÷ (k_t/R), × 1000/V_s.
@@ -608,10 +619,9 @@ impl Schedule {
             w_defl_q16: w_defl.apply(Q16_ONE),
             i_lim_q16,
             i_lim_duty_q16: duty_per_amp.apply(i_lim_q16),
-            i_win_duty_q16: to_q16(mul(
-                duty_per_amp_wide,
-                i_lim.min(mul(wide(lim.max_current_a), wide(RESISTANCE_LOW))?),
-            )?)?,
+            i_win_duty_q16: i_win,
+            i_win_cfg_duty_q16: i_win,
+            i_win_est_duty_q16: i_win,
             i_lim_from_beams,
             tau_lim_q16: to_q16(tau_lim)?,
             clutch_tolerance: lim.clutch_tolerance,
