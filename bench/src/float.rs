@@ -40,7 +40,7 @@ use core::f32::consts::PI;
 use model::control::creep::{Creep, CREEP_SPEED, PRESS_WIND_SHIFT};
 use model::control::hunt::Hunt;
 use model::control::schedule::{
-    CONTACT_CURRENT_TOLERANCE, CONTACT_TORQUE_NM, COULOMB_RAMP_RAD_S,
+    CONTACT_CURRENT_TOLERANCE, CONTACT_TORQUE_NM, COULOMB_RAMP_RAD_S, CURRENT_GAIN_TOLERANCE_DIV,
     CURRENT_OFFSET_TOLERANCE_COUNTS, FLOAT_LOAD_NM, FREE_PLAY_SWITCH_NM,
     HELD_DAMPING_DEADBAND_SHIFT, IMPACT_MATCH_SHIFT, IMPACT_SPEED_FRACTION, MOVE_OBSERVER_RATIO,
     OBSERVER_RATIO, PRESSED_LOAD_NM, RESISTANCE_LOW, RESISTANCE_TOLERANCE, REST_LOAD_NM,
@@ -986,12 +986,9 @@ impl FloatController {
                     small_step: dash::SMALL_STEP_FREE_PLAYS as f32 * s.free_play,
                     held_min: s.float_load / 2.0,
                 };
-                self.traj.step(
-                    i32f32(target.to_bits()),
-                    &limits,
-                    self.integ,
-                    s.shaper_ticks,
-                );
+                let hold = self.plan_hold();
+                self.traj
+                    .step(i32f32(target.to_bits()), &limits, hold, s.shaper_ticks);
             }
             _ => self.traj.command(cmd),
         }
@@ -1000,6 +997,29 @@ impl FloatController {
             _ => FloatMoveDrive::NEW,
         };
         self.commanded = true;
+    }
+
+    /// The load a raw step is planned with, ‰ (as `Controller::plan_hold`): the
+    /// integrator's, but a still hold that takes more than half the current limit no more
+    /// than its measured current needs through the configured R.
+    fn plan_hold(&self) -> f32 {
+        let s = &self.s;
+        let still = libm::fabsf(self.integ) > s.duty_per_amp * s.i_lim / 2.0
+            && self.traj.vel == 0.0
+            && self.traj.acc == 0.0
+            && libm::fabsf(self.w_link) < s.w_deadband
+            && !self.hunt.hunting();
+        if !still {
+            return self.integ;
+        }
+        let i = libm::fabsf(self.i_filtered) * (1.0 + 1.0 / CURRENT_GAIN_TOLERANCE_DIV as f32)
+            + CURRENT_OFFSET_TOLERANCE_COUNTS as f32 / ADC_COUNTS_PER_A;
+        let by_current = s.duty_per_amp * i;
+        if libm::fabsf(self.integ) <= by_current {
+            self.integ
+        } else {
+            libm::copysignf(by_current, self.integ)
+        }
     }
 
     /// Forgets the loop state (as `Controller::reset`).

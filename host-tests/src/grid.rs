@@ -713,6 +713,38 @@ pub fn warm_motors_pushed_off() -> [Case; 2] {
     ]
 }
 
+/// Two off-nominal grid cases of a warm motor (R ×1.26–1.36) on a low supply (10.6–11.0 V)
+/// holding 0.27–0.29 N·m at L = 5.5–7.1 mm: the hold's duty read the load R/R̂·V̂/V times
+/// too large, near the current limit in duty, and the command was planned with no headroom
+/// (the move stretched from 295 ms to 4.5 s, the raw step as slow), 289 and 253 counts off
+/// after 2 s before a still hold's load was read from its current (docs/design.md §11,
+/// "Runs that ended far off"): seed 1000102 #65 and seed 1000204 #54, written out in full.
+#[must_use]
+pub fn warm_motors_planned_slow() -> [Case; 2] {
+    [
+        Case::written(
+            5471,
+            4.938_981_415_496_83e-3,
+            -0.292_210_37,
+            Motion::Move(-0.561_999_047_199_087_8, 295),
+            "resistance=x1.2637768,torque-constant=x1.0006224,back-emf=x1.0686586,\
+             gear-inertia=x1.1526715,gear-friction=x1.9182605,supply=10.608518V,\
+             current-offset=5.096883,current-gain=0.9569794,pot-offset=-2.5538776,\
+             link-inertia=x1.9951535",
+        ),
+        Case::written(
+            7070,
+            4.291_920_855_644_298e-3,
+            -0.273_956_8,
+            Motion::Step(-0.536_144_456_163_728_1),
+            "resistance=x1.3580596,torque-constant=x0.9073947,back-emf=x0.9982773,\
+             gear-inertia=x0.87014693,gear-friction=x0.77494556,supply=10.957324V,\
+             current-offset=-13.781277,current-gain=0.9958753,pot-offset=0.49209514,\
+             link-inertia=x1.2862281",
+        ),
+    ]
+}
+
 /// Three nominal grid cases of raw steps at soft settings (L = 7.6–7.9 mm) under light
 /// loads, whose link rang on the beams after the profile's torque steps and settled at
 /// 2.01 / 1.30 / 1.34 times their limit before the shaper (docs/design.md §11, "Raw steps

@@ -376,6 +376,18 @@ fn a_warm_motor_under_a_heavy_load_holds_its_target() {
     );
 }
 
+/// A command from a still hold is planned with the load its current shows where the
+/// hold's duty would leave no headroom (docs/design.md §11, "Runs that ended far off"):
+/// the two cases of `grid::warm_motors_planned_slow` end within a count of their targets,
+/// at rest, within the beams and without a fault; their settling time stays open.
+#[test]
+fn a_warm_motor_on_a_low_supply_plans_with_the_load_it_carries() {
+    assert_every_limit_but(
+        &grid::warm_motors_planned_slow(),
+        &[grid::SETTLING, grid::RAW_STEP_BOUND],
+    );
+}
+
 /// Raw steps at soft settings go through the shaper: the three nominal grid cases of
 /// `grid::soft_raw_steps_ringing` meet every limit but the raw steps' time-optimal bound.
 #[test]

@@ -12,7 +12,10 @@ use super::gain::{q16_to_q32, q32_to_q16, sat_i32, scale_q16, Q16_ONE};
 use super::hunt::Hunt;
 use super::move_drive::MoveDrive;
 use super::move_duration;
-use super::schedule::{Schedule, HELD_DAMPING_DEADBAND_SHIFT, IMPACT_MATCH_SHIFT, TICKS_PER_S};
+use super::schedule::{
+    Schedule, CURRENT_GAIN_TOLERANCE_DIV, CURRENT_OFFSET_TOLERANCE_COUNTS,
+    HELD_DAMPING_DEADBAND_SHIFT, IMPACT_MATCH_SHIFT, TICKS_PER_S,
+};
 use super::sine_feedforward::FeedForward;
 use super::speed_scale::SpeedScale;
 use super::trajectory::{Command, Reference, Trajectory};
@@ -296,8 +299,7 @@ impl Controller {
             // A raw step runs the near-time-optimal profile, planned with the load the
             // integrator holds now.
             Command::Step { target } => {
-                self.traj
-                    .step(target, &self.sched, q32_to_q16(self.integ))?;
+                self.traj.step(target, &self.sched, self.plan_hold())?;
             }
             _ => self.traj.command(self.planned(cmd))?,
         }
@@ -336,10 +338,41 @@ impl Controller {
                     &self.sched,
                     self.traj.reference().position.to_bits(),
                     target.to_bits(),
-                    q32_to_q16(self.integ),
+                    self.plan_hold(),
                 )),
             },
             other => other,
+        }
+    }
+
+    /// The load a command is planned with, ‰ Q16: the integrator's hold, but for a still
+    /// hold (a standing reference, the link still, no hunt) no more than the duty the
+    /// measured current needs through the configured R (plus the sense's offset and gain
+    /// tolerances). A warm motor or a sagging supply hold a load with R/R̂·V̂/V more duty
+    /// than the configured motor would, and a plan on that duty found no headroom: a move
+    /// stretched from 295 ms to 4.5 s (design §11, "Runs that ended far off"). A hunting
+    /// hold's current swings with its duty and says nothing of the load.
+    fn plan_hold(&self) -> i32 {
+        let u_i = q32_to_q16(self.integ);
+        let starved = u_i.saturating_abs() > self.sched.i_lim_duty_q16 >> 1;
+        let still = starved
+            && self.traj.reference().stationary()
+            && self.w_link.saturating_abs() < self.sched.w_deadband_q16
+            && !self.hunt.hunting();
+        if !still {
+            return u_i;
+        }
+        let i = self.i_filtered.saturating_abs();
+        let i = i
+            .saturating_add(i / CURRENT_GAIN_TOLERANCE_DIV)
+            .saturating_add(CURRENT_OFFSET_TOLERANCE_COUNTS << ADC_TO_Q16_SHIFT);
+        let by_current = self.sched.duty_per_amp.apply(i);
+        if u_i.saturating_abs() <= by_current {
+            u_i
+        } else if u_i < 0 {
+            -by_current
+        } else {
+            by_current
         }
     }
 

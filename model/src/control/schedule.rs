@@ -58,6 +58,9 @@ pub const RESISTANCE_LOW: I32F32 = I32F32::lit("0.8");
 /// Current-sense offset the observer's dead bands allow for, ADC counts (what
 /// calibration leaves, docs/design.md §9); plus 1.5 counts of resolution.
 pub const CURRENT_OFFSET_TOLERANCE_COUNTS: i32 = 20;
+/// Current-sense gain error a plan's load allows for, as the divisor of the reading:
+/// 1/20 = ±5 % (docs/design.md §9).
+pub const CURRENT_GAIN_TOLERANCE_DIV: i32 = 20;
 /// Held in the reference's count, the derivative term is 0 while the filtered gear
 /// velocity is below the observer's dead band shifted right by this (an eighth: 11 mrad/s,
 /// about 4σ of a 2-count current sense's filtered noise; a quarter left a nominal step's
