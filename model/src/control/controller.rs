@@ -325,8 +325,10 @@ impl Controller {
 
     /// `cmd` as [`Controller::command`] runs it now: a move no shorter than the limits
     /// allow with the load the integrator holds ([`move_duration`]), anything else as it
-    /// is.
+    /// is. Out of line: configuration-time work (a 128-bit division, a square root) that
+    /// a caller's per-tick code should not carry inlined.
     #[must_use]
+    #[inline(never)]
     pub fn planned(&self, cmd: Command) -> Command {
         match cmd {
             Command::Move {
@@ -983,7 +985,9 @@ impl Controller {
         current: i32,
     ) -> Output {
         self.limited = c.limited;
-        let duty = sat_i32((i64::from(c.uc) + 0x8000) >> 16).clamp(-1000, 1000) as i16;
+        // Rounded to whole ‰ in 32 bits: the window bounds |uc| by the duty limit (below
+        // 2²⁷ in Q16), so the add cannot saturate and no 64-bit step is needed.
+        let duty = (c.uc.saturating_add(0x8000) >> 16).clamp(-1000, 1000) as i16;
         self.hunt.update(stationary, duty);
         self.duty_prev = duty;
         Output {

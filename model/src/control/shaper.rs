@@ -17,7 +17,7 @@
 //! profile runs unshaped (its own position, its drive and braking rules). The delayed half
 //! is the profile replayed: the shaper keeps the profile's change of speed along the step
 //! in each of its last `SHAPER_LEN` ticks (an `i16`, Q16 rad/s: the controller's state is
-//! copied whole while a board starts, and its stack has room for little more) and
+//! copied whole while a board starts, a prepared configuration per scenario segment) and
 //! integrates them Δ ticks late with the profile's own rule (`dash::travel`), so the
 //! delayed half is the profile itself, bit for bit. Per tick: one change stored, one read,
 //! one travel, three halvings and adds.

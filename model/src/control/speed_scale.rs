@@ -55,8 +55,8 @@ const VALUE_SHIFT: u32 = 10;
 /// much): they stay within `i32`, so the fit's products are single 32×32→64-bit multiplies.
 const SUM_LIMIT: i32 = 1 << 30;
 
-/// What a [`SpeedScale`] counts. One byte: the tracker sits in every controller, and the
-/// emulated firmware's RAM leaves its stack a few dozen bytes.
+/// What a [`SpeedScale`] counts. One byte: the tracker sits in every controller, and every
+/// scenario of the emulated firmware keeps a controller per segment.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Counting {
     /// Nothing: no loaded command, or its reference stopped.
