@@ -348,9 +348,10 @@ impl Controller {
     }
 
     /// The load a command is planned with, ‰ Q16: the integrator's hold, but for a still
-    /// hold (a standing reference, the link still, no hunt) no more than the duty the
-    /// measured current needs through the configured R (plus the sense's offset and gain
-    /// tolerances). A warm motor or a sagging supply hold a load with R/R̂·V̂/V more duty
+    /// hold (a standing reference, the link still, no hunt) that takes more than half the
+    /// current limit in duty, no more than the duty the measured current needs through the
+    /// configured R (plus the sense's offset and gain tolerances; below half the limit the
+    /// configured duty's margin stays: heavy links lean on it). A warm motor or a sagging supply hold a load with R/R̂·V̂/V more duty
     /// than the configured motor would, and a plan on that duty found no headroom: a move
     /// stretched from 295 ms to 4.5 s (design §11, "Runs that ended far off"). A hunting
     /// hold's current swings with its duty and says nothing of the load.
