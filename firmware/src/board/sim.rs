@@ -114,7 +114,7 @@ impl Simulation {
     /// static simulation (init calls this or [`serve`] once); also returns the servo configured for it and its service.
     ///
     /// [`serve`]: Simulation::serve
-    #[inline(never)] // its frame (the 14 KiB scenario, built in place) ends with it
+    #[inline(never)] // its frame ends with it (the 14 KiB scenario is built in its static)
     pub fn new(id: ScenarioId, plant: &Overrides) -> (&'static mut Simulation, Servo, Service) {
         let run = match place_run(id, plant) {
             Ok(r) => r,

@@ -259,12 +259,13 @@ pub struct Schedule {
     /// The current limit in duty, ‰ Q16: `duty_per_amp` applied to `i_lim_q16` (derived
     /// once here, not per tick).
     pub(crate) i_lim_duty_q16: i32,
-    /// Half-width of the current window about the back-EMF, ‰ Q16: the current limit, at
-    /// most `RESISTANCE_LOW` × the motor's current rating, in duty; as configured, and
-    /// widened for the warmer motor the observer's resistance estimate reads, within 5/4
-    /// of the load the integrator holds (`Controller::track_speed`, design §11, "Runs
-    /// that ended far off").
+    /// Half-width of the current window about the back-EMF in force, ‰ Q16: the
+    /// configured one, widened for the warmer motor the observer's resistance estimate
+    /// reads within 5/4 of the load the integrator holds (`Controller::track_speed`, design
+    /// §11, "Runs that ended far off").
     pub(crate) i_win_duty_q16: i32,
+    /// The window as configured, ‰ Q16: the current limit, at most `RESISTANCE_LOW` × the
+    /// motor's current rating, in duty.
     pub(crate) i_win_cfg_duty_q16: i32,
     /// The configured window times the estimate's resistance over the configured one
     /// (never below the configured window), ‰ Q16.
