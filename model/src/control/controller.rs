@@ -12,9 +12,10 @@ use super::gain::{q16_to_q32, q32_to_q16, sat_i32, scale_q16, Q16_ONE};
 use super::hunt::Hunt;
 use super::move_drive::MoveDrive;
 use super::move_duration;
+use super::rest_resistance::UNCALIBRATED_OFFSET_Q16;
 use super::schedule::{
-    Schedule, CURRENT_GAIN_TOLERANCE_DIV, CURRENT_OFFSET_TOLERANCE_COUNTS,
-    HELD_DAMPING_DEADBAND_SHIFT, IMPACT_MATCH_SHIFT, TICKS_PER_S,
+    Schedule, CURRENT_GAIN_TOLERANCE_DIV, HELD_DAMPING_DEADBAND_SHIFT, IMPACT_MATCH_SHIFT,
+    TICKS_PER_S,
 };
 use super::sine_feedforward::FeedForward;
 use super::speed_scale::SpeedScale;
@@ -350,11 +351,12 @@ impl Controller {
     /// The load a command is planned with, ‰ Q16: the integrator's hold, but for a still
     /// hold (a standing reference, the link still, no hunt) that takes more than half the
     /// current limit in duty, no more than the duty the measured current needs through the
-    /// configured R (plus the sense's offset and gain tolerances; below half the limit the
-    /// configured duty's margin stays: heavy links lean on it). A warm motor or a sagging supply hold a load with R/R̂·V̂/V more duty
-    /// than the configured motor would, and a plan on that duty found no headroom: a move
-    /// stretched from 295 ms to 4.5 s (design §11, "Runs that ended far off"). A hunting
-    /// hold's current swings with its duty and says nothing of the load.
+    /// configured R (plus the sense's gain tolerance and the offset an uncalibrated sense
+    /// may have; below half the limit the configured duty's margin stays: heavy links lean
+    /// on it). A warm motor or a sagging supply hold a load with R/R̂·V̂/V more duty than the
+    /// configured motor would, and a plan on that duty found no headroom: a move stretched
+    /// from 295 ms to 4.5 s (design §11, "Runs that ended far off"). A hunting hold's
+    /// current swings with its duty and says nothing of the load.
     fn plan_hold(&self) -> i32 {
         let u_i = q32_to_q16(self.integ);
         let starved = u_i.saturating_abs() > self.sched.i_lim_duty_q16 >> 1;
@@ -368,7 +370,7 @@ impl Controller {
         let i = self.i_filtered.saturating_abs();
         let i = i
             .saturating_add(i / CURRENT_GAIN_TOLERANCE_DIV)
-            .saturating_add(CURRENT_OFFSET_TOLERANCE_COUNTS << ADC_TO_Q16_SHIFT);
+            .saturating_add(UNCALIBRATED_OFFSET_Q16 as i32);
         let by_current = self.sched.duty_per_amp.apply(i);
         if u_i.saturating_abs() <= by_current {
             u_i
