@@ -625,7 +625,9 @@ impl Controller {
             ENCODER_HALF_COUNT_Q32
         };
         let link = theta_l + nearest;
-        let anchor = link.saturating_add(q16_to_q32(self.defl_prev));
+        // |θ_l| < 2⁵⁵ and the deflection an i32 in Q16 (below 2⁴⁷ in Q32): a plain add
+        // (the saturating i64 forms cost ~8 instructions each on the M3).
+        let anchor = link + q16_to_q32(self.defl_prev);
         // Under load the beams stay in contact on one side and the link error is the
         // better signal (an observer scale error adds up over a move); the gear loop is for
         // a link that floats in the free play.
@@ -728,11 +730,9 @@ impl Controller {
         // The position loop acts on the gear: where the gear should be (the reference plus
         // the deflection the coupling needs) minus the gear estimate. The link enters it
         // below ω_o only, so the link's rattle in the free play does not drive the motor.
+        // r below 2⁵⁵ (above) plus the deflection below 2⁴⁷: a plain add, as the anchor's.
         let e_g = q32_to_q16(
-            r.position
-                .to_bits()
-                .saturating_add(q16_to_q32(self.defl_prev))
-                .saturating_sub(self.theta_g),
+            (r.position.to_bits() + q16_to_q32(self.defl_prev)).saturating_sub(self.theta_g),
         );
 
         // Derivative on the measured (gear) velocity; the reference velocity goes through
