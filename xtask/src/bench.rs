@@ -15,7 +15,8 @@
 //!
 //! and reads the footprint of the firmware with the simulated actuator and of the
 //! Nucleo-F446RE firmware. It prints markdown tables and writes
-//! `target/bench/report.json`.
+//! `target/bench/report.json`. `--quick` runs `vsa-bench` on qemu-m3 alone and prints its
+//! rows.
 
 use anyhow::{bail, Context, Result};
 use object::{Object, ObjectSection, SectionFlags, SectionKind};
@@ -218,6 +219,26 @@ pub fn run_bench(board: Board, echo: bool) -> Result<BenchRun> {
     checks::check(&outcome, &Expected::Records(&BENCH_RECORDS))
         .with_context(|| format!("vsa-bench on {}", board.feature()))?;
     parse_run(&outcome.lines, BENCH_SHIFT)
+}
+
+/// `cargo xtask bench --quick`: `vsa-bench` on qemu-m3 alone (the board of the 2 000
+/// instruction budget), one row per benchmark, instructions mean / max.
+pub fn quick() -> Result<()> {
+    setup::ensure_targets()?;
+    setup::ensure_qemu()?;
+    let board = Board::QemuM3;
+    eprintln!("xtask: benchmarks on {}", board.feature());
+    let run = run_bench(board, false)?;
+    println!(
+        "| instructions per call | {0} mean | {0} max |",
+        board.feature()
+    );
+    println!("|---|---:|---:|");
+    for (name, label) in BENCHES.iter() {
+        let r = &run.results[*name];
+        println!("| {label} | {:.1} | {:.1} |", r.mean, r.max);
+    }
+    Ok(())
 }
 
 /// The `RESULT stack` record → (peak, size, boot, running), bytes.

@@ -124,7 +124,12 @@ enum Task {
         board: Board,
     },
     /// Instruction counts per call (fixed point vs f32), footprint and stack of each board.
-    Bench,
+    Bench {
+        /// Only the benchmarks on qemu-m3, mean and max per row (about 30 s; no footprint,
+        /// stack or report): for trying a change to the control step.
+        #[arg(long)]
+        quick: bool,
+    },
     /// The shortest raw steps the elastic actuator's linear part allows (a linear program
     /// per step, numpy and scipy in target/venv) for the loaded raw steps of the grid's
     /// dumps (`VSA_GRID_DUMP=/tmp/g.nom cargo test --release -p host-tests --test grid --
@@ -252,7 +257,8 @@ fn dispatch(task: Task) -> Result<ExitCode> {
             }
             Ok(ExitCode::SUCCESS)
         }
-        Task::Bench => bench::run().map(|()| ExitCode::SUCCESS),
+        Task::Bench { quick: false } => bench::run().map(|()| ExitCode::SUCCESS),
+        Task::Bench { quick: true } => bench::quick().map(|()| ExitCode::SUCCESS),
         Task::FlexBound {
             dumps,
             every,
