@@ -42,6 +42,8 @@ pub const SETTLING: &str = "settling / limit";
 pub const RAW_STEP_BOUND: &str = "raw-step settling / T_opt";
 /// See [`SETTLING`].
 pub const OVERSHOOT: &str = "overshoot %";
+/// See [`SETTLING`].
+pub const STEADY_STATE: &str = "steady-state error counts";
 
 /// The paper preset's beams (docs/design.md §2.2), SI.
 const BEAMS: f64 = 4.0;
@@ -745,6 +747,37 @@ pub fn warm_motors_planned_slow() -> [Case; 2] {
     ]
 }
 
+/// Three nominal grid cases of small raw steps without load (0.05–0.06 rad at L = 1.6–2.9 mm)
+/// that overshot by 15–18 % before a floating link's small step planned its profile φ_b/2
+/// short of the target (docs/design.md §11, "Small raw steps of a floating link"): seed 116
+/// #205, seed 202 #29 and seed 311 #155, written out in full.
+#[must_use]
+pub fn floating_small_raw_steps() -> [Case; 3] {
+    [
+        Case::written(
+            2241,
+            3.211_624_156_898_186e-4,
+            0.0,
+            Motion::Step(0.054_640_284_375_277_16),
+            "",
+        ),
+        Case::written(
+            2913,
+            3.264_916_008_653_884_7e-4,
+            0.0,
+            Motion::Step(-0.051_722_718_906_962_16),
+            "",
+        ),
+        Case::written(
+            1645,
+            8.965_824_350_366_206e-4,
+            0.0,
+            Motion::Step(0.063_026_524_418_837_56),
+            "",
+        ),
+    ]
+}
+
 /// Three nominal grid cases of raw steps at soft settings (L = 7.6–7.9 mm) under light
 /// loads, whose link rang on the beams after the profile's torque steps and settled at
 /// 2.01 / 1.30 / 1.34 times their limit before the shaper (docs/design.md §11, "Raw steps
@@ -1261,7 +1294,7 @@ impl Outcome {
             ),
             (SETTLING, settle_ratio, 1.0, settle_ratio <= 1.0),
             (
-                "steady-state error counts",
+                STEADY_STATE,
                 m.steady_state_error_counts,
                 STEADY_ERROR_MAX_COUNTS,
                 m.steady_state_error_counts <= STEADY_ERROR_MAX_COUNTS,

@@ -6,7 +6,7 @@
 
 use std::fmt::Write as _;
 
-use crate::grid::{Outcome, RAW_STEP_BOUND, SETTLING};
+use crate::grid::{Outcome, RAW_STEP_BOUND, SETTLING, STEADY_STATE};
 
 /// Running totals over grid outcomes.
 #[derive(Clone, Debug, Default)]
@@ -52,8 +52,7 @@ impl Tally {
             self.unloaded += 1;
             let at_rest = met("rest count span") && met("rest duty span ‰");
             self.unloaded_at_rest += usize::from(at_rest);
-            self.unloaded_at_rest_within +=
-                usize::from(at_rest && met("steady-state error counts"));
+            self.unloaded_at_rest_within += usize::from(at_rest && met(STEADY_STATE));
             self.unloaded_settled += usize::from(met(SETTLING));
         }
     }

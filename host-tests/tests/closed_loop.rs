@@ -388,6 +388,19 @@ fn a_warm_motor_on_a_low_supply_plans_with_the_load_it_carries() {
     );
 }
 
+/// A floating link's small raw step plans its profile φ_b/2 short of the target and lands
+/// on it (docs/design.md §11, "Small raw steps of a floating link"): the three cases of
+/// `grid::floating_small_raw_steps` (15–18 % before) stay within 5 % and meet every limit
+/// of the grid but the settling time, the steady-state error (a free link rests where the
+/// catch stops it) and the raw steps' time-optimal bound.
+#[test]
+fn small_raw_steps_of_a_floating_link_end_within_the_overshoot_limit() {
+    assert_every_limit_but(
+        &grid::floating_small_raw_steps(),
+        &[grid::SETTLING, grid::STEADY_STATE, grid::RAW_STEP_BOUND],
+    );
+}
+
 /// Raw steps at soft settings go through the shaper: the three nominal grid cases of
 /// `grid::soft_raw_steps_ringing` meet every limit but the raw steps' time-optimal bound.
 #[test]

@@ -35,9 +35,9 @@ use plant::overrides::Override;
 /// for small steps (the planned profile of `model::control::dash` leaves the loop too
 /// little time there). An entry leaves this list when its metric holds on the long run.
 const OPEN: &[&str] = &[
-    "overshoot %",
+    grid::OVERSHOOT,
     grid::SETTLING,
-    "steady-state error counts",
+    grid::STEADY_STATE,
     "rest count span",
     "rest duty span ‰",
     grid::RAW_STEP_BOUND,
