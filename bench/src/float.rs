@@ -330,6 +330,7 @@ enum Mode {
     /// The raw step's profile (`model::control::dash`).
     Dash {
         target: f32,
+        aim: f32,
         sign: f32,
         speed: f32,
         accel: f32,
@@ -418,8 +419,11 @@ pub struct FloatDashLimits {
     pub accel_per_held: f32,
     /// Steps shorter than this are small, rad (`SMALL_STEP_FREE_PLAYS`·φ_b).
     pub small_step: f32,
-    /// The least held duty a small step keeps the beams on one wall for, ‰.
+    /// The least held duty a small step keeps the beams on one wall for, ‰; below it a
+    /// small step aims short.
     pub held_min: f32,
+    /// How far a floating link's small step aims short, rad (φ_b/2^`FLOATING_SHORT_SHIFT`).
+    pub short: f32,
 }
 
 /// The reference generator in f32 (hold, raw step, minimum-jerk move, sine).
@@ -550,12 +554,8 @@ impl FloatTrajectory {
         let mut brake = l.current_fraction * (l.current_duty + hold * sign) / l.ff_acc;
         let top = l.voltage_fraction * (l.duty_lim - hold * sign) / l.ff_vel;
         let h = libm::fabsf(target - self.pos);
-        if accel > 0.0
-            && brake > 0.0
-            && top > 0.0
-            && h < l.small_step
-            && libm::fabsf(hold) >= l.held_min
-        {
+        let floating = libm::fabsf(hold) < l.held_min;
+        if accel > 0.0 && brake > 0.0 && top > 0.0 && h < l.small_step && !floating {
             // The beams stay on the wall the held load presses them against.
             let lim =
                 (l.accel_per_held * libm::fabsf(hold)).max(h * dash::CONTACT_FLOOR_PER_RAD as f32);
@@ -572,8 +572,15 @@ impl FloatTrajectory {
             self.acc = 0.0;
             return;
         }
+        // A floating link's small step aims short, at most half the step.
+        let short = if h < l.small_step && floating {
+            l.short.min(h / 2.0)
+        } else {
+            0.0
+        };
         self.mode = Mode::Dash {
             target,
+            aim: target - short * sign,
             sign,
             speed: self.vel * sign,
             accel,
@@ -623,6 +630,7 @@ impl FloatTrajectory {
             Mode::Hold => {}
             Mode::Dash {
                 target,
+                aim,
                 sign,
                 speed,
                 accel,
@@ -635,7 +643,7 @@ impl FloatTrajectory {
                 brake_scaled,
             } => {
                 let s = *speed;
-                let left = (*target - self.raw) * *sign;
+                let left = (*aim - self.raw) * *sign;
                 let mut next = if *braking == 0.0 && limited == *sign && s > 0.0 {
                     s
                 } else if *braking == 0.0 {
@@ -985,6 +993,7 @@ impl FloatController {
                         / s.j_link,
                     small_step: dash::SMALL_STEP_FREE_PLAYS as f32 * s.free_play,
                     held_min: s.float_load / 2.0,
+                    short: s.free_play / (1u32 << dash::FLOATING_SHORT_SHIFT) as f32,
                 };
                 let hold = self.plan_hold();
                 self.traj

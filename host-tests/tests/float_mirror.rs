@@ -3,8 +3,8 @@
 //! comparison would be meaningless.
 
 use bench::float::{
-    length_mm, stiffness_nm_per_rad, FloatBeam, FloatController, FloatMeasurements, FloatSchedule,
-    FloatServo,
+    length_mm, stiffness_nm_per_rad, FloatBeam, FloatController, FloatDashLimits,
+    FloatMeasurements, FloatSchedule, FloatServo, FloatTrajectory,
 };
 use model::control::{Command, Config, Measurements};
 use model::servo::{Servo, TickInput};
@@ -208,6 +208,46 @@ fn a_loop_that_hunts_at_rest_softens_in_both() {
         assert!(link_span < 3.0 * COUNT, "{name}: the link hunts");
         assert!(duty_span <= 20.0, "{name}: the duty hunts");
     }
+}
+
+/// The f32 port's raw step aims a floating link's small step short as `model::control::dash`
+/// does (design §11, "Small raw steps of a floating link"): with nothing held, a 0.05 rad
+/// step's profile stops `short` before the target and then lands on it; with a held load
+/// (and for a step of 0.3 rad) it runs to the target. Limits of the order of the paper
+/// preset's at 3 mm, written out.
+#[test]
+fn the_ports_raw_step_aims_a_floating_links_small_step_short() {
+    let limits = FloatDashLimits {
+        current_duty: 800.0,
+        duty_lim: 950.0,
+        current_fraction: 0.25,
+        voltage_fraction: 0.85,
+        ff_vel: 150.0,
+        ff_acc: 0.5,
+        accel_per_held: 10.0,
+        small_step: 0.2,
+        held_min: 16.7,
+        short: 2.55e-3,
+    };
+    // The farthest the profile gets before it lands (rad); it must land on the target.
+    let far = |h: f32, hold: f32| {
+        let mut t = FloatTrajectory::new(0.0);
+        t.step(h, &limits, hold, 0);
+        let mut far = 0f32;
+        for _ in 0..10_000 {
+            let r = t.advance();
+            if !t.is_dash() {
+                assert_eq!(r.position, h, "{h} rad, {hold} ‰: lands on the target");
+                return far;
+            }
+            far = far.max(r.position);
+        }
+        panic!("{h} rad, {hold} ‰: no landing");
+    };
+    let short = 0.05 - far(0.05, 0.0);
+    assert!((short - 2.55e-3).abs() < 2.5e-4, "{short} rad short");
+    assert!(0.05 - far(0.05, 50.0) < 2.5e-4, "held");
+    assert!(0.3 - far(0.3, 0.0) < 2.5e-4, "0.3 rad");
 }
 
 /// On identical readings the first ticks agree exactly, until the fixed-point deflection
