@@ -443,14 +443,19 @@ mod tests {
 
     /// A floating link's small step (nothing held) brakes to φ_b/2 short of its target and
     /// lands on the target; a held load's small step, and a floating link's step longer
-    /// than 40·φ_b, brake to the target. φ_b is the preset's c/R, 5.1e-3 rad (docs/design.md
-    /// §2.2), checked against the schedule's to 2 %.
+    /// than 40·φ_b, brake to the target. Oracle: φ_b = c/R of the paper preset in f64
+    /// (docs/design.md §2.2: c = t_c·θ_max, θ_max = σ_allow·l/(3·E·r), eqs. 5–6).
     #[test]
     fn a_floating_links_small_step_brakes_short_of_its_target() {
         let cfg = Config::paper(Length::from_int(3));
         let sched = Schedule::new(&Design::paper(), &cfg).unwrap();
-        let phi_b = sched.free_play().get().to_num::<f64>();
-        assert!((phi_b / 5.1e-3 - 1.0).abs() < 0.02, "φ_b {phi_b}");
+        let theta_max = 1.5e9 * 8e-3 / (3.0 * 200e9 * 0.5e-3);
+        let phi_b = 1e-3 * theta_max / 7.8e-3;
+        let configured = sched.free_play().get().to_num::<f64>();
+        assert!(
+            (configured / phi_b - 1.0).abs() < 1e-3,
+            "φ_b {configured} vs {phi_b}"
+        );
         let q32 = 2f64.powi(32);
         // The farthest the profile gets before it lands, and where it lands (rad).
         let run = |h: f64, held: f64| {
