@@ -35,8 +35,8 @@ pub const COUNT_SPAN_MAX: i32 = 1;
 pub const DUTY_SPAN_MAX: i32 = 20;
 /// Peak beam stress limit, × σ_allow.
 pub const STRESS_MAX_RATIO: f64 = 1.0;
-/// Names of the settling, raw-step bound and overshoot metrics in
-/// [`Outcome::figures`] (the tests that leave them open name them by these).
+/// Names of the metrics in [`Outcome::figures`] (the tests that leave them open, or
+/// enforce them, and the tally name them by these).
 pub const SETTLING: &str = "settling / limit";
 /// See [`SETTLING`].
 pub const RAW_STEP_BOUND: &str = "raw-step settling / T_opt";
@@ -44,6 +44,18 @@ pub const RAW_STEP_BOUND: &str = "raw-step settling / T_opt";
 pub const OVERSHOOT: &str = "overshoot %";
 /// See [`SETTLING`].
 pub const STEADY_STATE: &str = "steady-state error counts";
+/// See [`SETTLING`].
+pub const REST_COUNT_SPAN: &str = "rest count span";
+/// See [`SETTLING`].
+pub const REST_DUTY_SPAN: &str = "rest duty span ‰";
+/// See [`SETTLING`].
+pub const PEAK_STRESS: &str = "peak stress / σ_allow";
+/// See [`SETTLING`].
+pub const FAULTS: &str = "faults latched";
+/// See [`SETTLING`].
+pub const FALSE_TRIPS: &str = "false trips (stress < σ_allow)";
+/// See [`SETTLING`].
+pub const STRESS_AFTER_TRIP: &str = "stress after a trip / σ_allow";
 
 /// The paper preset's beams (docs/design.md §2.2), SI.
 const BEAMS: f64 = 4.0;
@@ -1300,32 +1312,32 @@ impl Outcome {
                 m.steady_state_error_counts <= STEADY_ERROR_MAX_COUNTS,
             ),
             (
-                "rest count span",
+                REST_COUNT_SPAN,
                 f64::from(m.steady_count_span),
                 f64::from(COUNT_SPAN_MAX),
                 m.steady_count_span <= COUNT_SPAN_MAX,
             ),
             (
-                "rest duty span ‰",
+                REST_DUTY_SPAN,
                 f64::from(m.steady_duty_span),
                 f64::from(DUTY_SPAN_MAX),
                 m.steady_duty_span <= DUTY_SPAN_MAX,
             ),
             (
-                "peak stress / σ_allow",
+                PEAK_STRESS,
                 m.peak_stress_ratio,
                 STRESS_MAX_RATIO,
                 m.peak_stress_ratio <= STRESS_MAX_RATIO,
             ),
-            ("faults latched", faults, 0.0, m.faults.is_empty()),
+            (FAULTS, faults, 0.0, m.faults.is_empty()),
             (
-                "false trips (stress < σ_allow)",
+                FALSE_TRIPS,
                 f64::from(u8::from(false_trip)),
                 0.0,
                 !false_trip,
             ),
             (
-                "stress after a trip / σ_allow",
+                STRESS_AFTER_TRIP,
                 m.peak_stress_after_fault_pa / m.allowable_stress_pa,
                 STRESS_MAX_RATIO,
                 m.peak_stress_after_fault_pa <= STRESS_MAX_RATIO * m.allowable_stress_pa,

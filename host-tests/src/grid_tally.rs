@@ -6,7 +6,9 @@
 
 use std::fmt::Write as _;
 
-use crate::grid::{Outcome, RAW_STEP_BOUND, SETTLING, STEADY_STATE};
+use crate::grid::{
+    Outcome, RAW_STEP_BOUND, REST_COUNT_SPAN, REST_DUTY_SPAN, SETTLING, STEADY_STATE,
+};
 
 /// Running totals over grid outcomes.
 #[derive(Clone, Debug, Default)]
@@ -50,7 +52,7 @@ impl Tally {
         }
         if o.case.load_nm == 0.0 {
             self.unloaded += 1;
-            let at_rest = met("rest count span") && met("rest duty span ‰");
+            let at_rest = met(REST_COUNT_SPAN) && met(REST_DUTY_SPAN);
             self.unloaded_at_rest += usize::from(at_rest);
             self.unloaded_at_rest_within += usize::from(at_rest && met(STEADY_STATE));
             self.unloaded_settled += usize::from(met(SETTLING));

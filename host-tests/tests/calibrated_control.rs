@@ -32,10 +32,10 @@ const CASES_PER_BUILD: usize = 4;
 const MAX_TICKS: u32 = 20_000;
 /// The metrics enforced here (the others are the grid's open ones).
 const ENFORCED: [&str; 4] = [
-    "peak stress / σ_allow",
-    "faults latched",
-    "false trips (stress < σ_allow)",
-    "stress after a trip / σ_allow",
+    grid::PEAK_STRESS,
+    grid::FAULTS,
+    grid::FALSE_TRIPS,
+    grid::STRESS_AFTER_TRIP,
 ];
 
 #[test]

@@ -38,8 +38,8 @@ const OPEN: &[&str] = &[
     grid::OVERSHOOT,
     grid::SETTLING,
     grid::STEADY_STATE,
-    "rest count span",
-    "rest duty span ‰",
+    grid::REST_COUNT_SPAN,
+    grid::REST_DUTY_SPAN,
     grid::RAW_STEP_BOUND,
 ];
 
@@ -47,11 +47,7 @@ const OPEN: &[&str] = &[
 /// than configured, faults and stress after a trip by runs whose impacts overload the
 /// beams. With the nominal actuator they hold on the long run (5 000 cases: no fault, worst
 /// peak stress 0.907 σ_allow; booted under its load 0.930) and are enforced.
-const OPEN_OFF_NOMINAL: &[&str] = &[
-    "peak stress / σ_allow",
-    "faults latched",
-    "stress after a trip / σ_allow",
-];
+const OPEN_OFF_NOMINAL: &[&str] = &[grid::PEAK_STRESS, grid::FAULTS, grid::STRESS_AFTER_TRIP];
 
 /// `VSA_GRID_CLUTCH_TOLERANCE_UM`, µm (0 by default).
 fn clutch_tolerance_um() -> u32 {
